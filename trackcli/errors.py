@@ -1,0 +1,57 @@
+"""Exceptions raised by trackcli.
+
+Every error a user can cause derives from :class:`TrackcliError`.  Each subclass also
+inherits the matching builtin (``ValueError``, ``OSError``), so library callers may catch
+either.  The command line maps each class to an exit code (``exit_code``) and prints
+``str(error)`` as one line, without a traceback.
+
+Exit codes (documented in the README):
+
+=====  ============================================================
+0      success
+1      a run failed (e.g. some clips in a batch failed)
+2      bad command-line usage (Click's own code)
+3      invalid configuration file or option value
+4      input missing, unreadable or malformed (video, template, model, CSV)
+5      the data cannot support the computation (too few frames, singular system)
+130    interrupted (Ctrl-C)
+=====  ============================================================
+"""
+
+from __future__ import annotations
+
+
+class TrackcliError(Exception):
+    """Root of all trackcli errors."""
+
+    exit_code = 1
+
+
+class ConfigError(TrackcliError, ValueError):
+    """A configuration value is unknown, of the wrong type or out of range."""
+
+    exit_code = 3
+
+
+class InputError(TrackcliError, OSError):
+    """An input file is missing, unreadable or malformed."""
+
+    exit_code = 4
+
+
+class VideoError(InputError):
+    """A video file or image folder cannot be opened or decoded."""
+
+
+class TemplateError(InputError):
+    """A template file is malformed."""
+
+
+class ModelError(InputError):
+    """A model file is malformed."""
+
+
+class DataError(TrackcliError, ValueError):
+    """The data are insufficient or degenerate for the requested computation."""
+
+    exit_code = 5
