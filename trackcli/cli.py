@@ -56,6 +56,40 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
     ctx.obj["quiet"] = quiet
 
 
+# ---------------------------------------------------------------------------------------------
+# config
+
+
+@cli.group("config")
+def config_group() -> None:
+    """Show, explain and check configuration files."""
+
+
+@config_group.command("show")
+@click.argument("file", required=False, type=click.Path(dir_okay=False))
+@click.option("--comments", is_flag=True, help="Explain every setting in a comment.")
+def config_show(file: str | None, comments: bool) -> None:
+    """Print the effective configuration: the defaults, overridden by FILE if given.
+
+    The output is itself a valid configuration file:
+    `trackcli config show --comments > my.yaml` starts a new one.
+    """
+    from .config import dump_yaml, load_settings, render_commented
+
+    settings = load_settings(file)
+    click.echo(render_commented(settings) if comments else dump_yaml(settings), nl=False)
+
+
+@config_group.command("check")
+@click.argument("file", type=click.Path(dir_okay=False))
+def config_check(file: str) -> None:
+    """Validate FILE; exit 0 if it is valid, 3 with the reason if not."""
+    from .config import load_settings
+
+    load_settings(file)
+    click.echo(f"{file}: OK")
+
+
 def main() -> None:
     cli(prog_name="trackcli")
 
