@@ -1,0 +1,173 @@
+"""Making templates without a mouse: from points, an ellipse, a box or a mask.
+
+Every route ends the same way: an ordered outline polygon ``(P, 2)`` in image ``(x, y)``
+pixels, to which a B-spline with a chosen number of control points is fitted by least
+squares (:func:`trackcli.spline.fit`).
+
+- ``--points``: the polygon is given.
+- ``--ellipse cx,cy,a,b[,angle]``: the polygon is sampled from the ellipse (angle in degrees,
+  clockwise on screen since ``y`` points down).
+- ``--box x,y,w,h``: the object inside the box is segmented with GrabCut (OpenCV), seeded by
+  the box (outside = background), and the outline of the largest region is traced.
+- ``--mask FILE``: a binary image (non-zero = object); the outline of its largest region.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from .errors import DataError, InputError
+
+# ---------------------------------------------------------------------------------------------
+# Parsing user input
+
+
+def parse_numbers(text: str, count: int | tuple[int, int], what: str) -> list[float]:
+    """Parse ``"a,b,c"`` into floats, checking how many there are."""
+    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise InputError(f"{what}: expected comma-separated numbers, got {text!r}") from None
+    lo, hi = (count, count) if isinstance(count, int) else count
+    if not lo <= len(values) <= hi:
+        n = str(lo) if lo == hi else f"{lo} to {hi}"
+        raise InputError(f"{what}: expected {n} numbers, got {len(values)} in {text!r}")
+    if not all(np.isfinite(values)):
+        raise InputError(f"{what}: numbers must be finite, got {text!r}")
+    return values
+
+
+def parse_points(spec: str) -> np.ndarray:
+    """Ordered points from ``"x1,y1 x2,y2 ..."`` (or ``x1,y1,x2,y2,...``) or from a file of them.
+
+    A file holds one ``x,y`` (or ``x y``) pair per line; blank lines and lines starting with
+    ``#`` are ignored.  Returns an array of shape ``(P, 2)``.
+    """
+    path = Path(spec)
+    looks_numeric = re.fullmatch(r"[\d.,\s+\-eE]+", spec) is not None
+    if not looks_numeric:
+        if not path.is_file():
+            raise InputError(f"--points: {spec!r} is neither x,y pairs nor an existing points file")
+        rows = []
+        for k, line in enumerate(path.read_text(encoding="utf-8", errors="replace").splitlines(), 1):
+            line = line.strip()
+            if line and not line.startswith("#"):
+                rows.append(parse_numbers(line, 2, f"{spec} line {k}"))
+        pts = np.asarray(rows, dtype=float).reshape(-1, 2)
+    else:
+        values = parse_numbers(spec, (0, 10**6), "--points")
+        if len(values) % 2:
+            raise InputError(f"--points: expected x,y pairs, got an odd count of numbers ({len(values)})")
+        pts = np.asarray(values, dtype=float).reshape(-1, 2)
+    if len(pts) < 3:
+        raise InputError(f"--points: need at least 3 points, got {len(pts)}")
+    return pts
+
+
+# ---------------------------------------------------------------------------------------------
+# Outlines
+
+
+def ellipse_outline(cx: float, cy: float, a: float, b: float, angle_deg: float = 0.0, n: int = 256) -> np.ndarray:
+    """Points ``(n, 2)`` on an ellipse with semi-axes ``a`` (along x before rotation) and ``b``."""
+    if a <= 0 or b <= 0:
+        raise InputError(f"--ellipse: semi-axes must be positive, got a={a:g}, b={b:g}")
+    t = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    c, s = np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))
+    x, y = a * np.cos(t), b * np.sin(t)
+    return np.column_stack([cx + c * x - s * y, cy + s * x + c * y])
+
+
+def mask_outline(mask: np.ndarray) -> np.ndarray:
+    """Outline ``(P, 2)`` of the largest region of a binary mask, as an ordered polygon."""
+    import cv2
+
+    m = (np.asarray(mask) > 0).astype(np.uint8)
+    if m.ndim != 2:
+        raise InputError(f"mask must be a 2-D image, got shape {m.shape}")
+    contours, _ = cv2.findContours(m, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    if not contours:
+        raise DataError("the mask contains no object (no non-zero pixels)")
+    c = max(contours, key=cv2.contourArea)
+    if cv2.contourArea(c) < 9:
+        raise DataError("the mask's largest region is too small to outline (under 9 px)")
+    return c[:, 0, :].astype(float)
+
+
+def load_mask(path: str | Path, frame_size: tuple[int, int] | None = None) -> np.ndarray:
+    """Read a binary mask image (non-zero = object); check its size against the frame."""
+    import cv2
+
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{p}: no such mask file")
+    m = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)
+    if m is None:
+        raise InputError(f"{p}: not an image OpenCV can read")
+    if frame_size is not None and (m.shape[1], m.shape[0]) != tuple(frame_size):
+        raise InputError(f"{p}: mask is {m.shape[1]}x{m.shape[0]} but the frame is {frame_size[0]}x{frame_size[1]}")
+    return m
+
+
+def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *, iterations: int = 5) -> np.ndarray:
+    """Segment the object inside ``box = (x, y, w, h)`` with GrabCut; returns a uint8 mask.
+
+    Everything outside the box is background.  The result is cleaned: small specks removed by
+    a morphological opening, holes filled, and only the largest region kept.
+    """
+    import cv2
+
+    h_img, w_img = image_bgr.shape[:2]
+    x, y, w, h = box
+    if w <= 0 or h <= 0:
+        raise InputError(f"--box: width and height must be positive, got {w:g}x{h:g}")
+    x0, y0 = int(round(max(0.0, x))), int(round(max(0.0, y)))
+    x1, y1 = int(round(min(float(w_img), x + w))), int(round(min(float(h_img), y + h)))
+    if x1 - x0 < 8 or y1 - y0 < 8:
+        raise InputError(f"--box {x:g},{y:g},{w:g},{h:g}: lies (almost) outside the {w_img}x{h_img} frame")
+    rect = (x0, y0, x1 - x0, y1 - y0)
+    mask = np.zeros((h_img, w_img), np.uint8)
+    bgd = np.zeros((1, 65), np.float64)
+    fgd = np.zeros((1, 65), np.float64)
+    # GrabCut needs some background: if the box covers the whole frame, shrink it by a pixel.
+    if rect[2] >= w_img - 1 and rect[3] >= h_img - 1:
+        rect = (1, 1, w_img - 2, h_img - 2)
+    cv2.setRNGSeed(0)  # GrabCut's GMM initialisation uses OpenCV's RNG: keep runs reproducible
+    cv2.grabCut(image_bgr, mask, rect, bgd, fgd, iterations, cv2.GC_INIT_WITH_RECT)
+    fg = np.where((mask == cv2.GC_FGD) | (mask == cv2.GC_PR_FGD), 255, 0).astype(np.uint8)
+    k = max(3, int(round(min(rect[2], rect[3]) * 0.03)) | 1)
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
+    fg = cv2.morphologyEx(fg, cv2.MORPH_OPEN, kernel)
+    fg = cv2.morphologyEx(fg, cv2.MORPH_CLOSE, kernel)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(fg, connectivity=8)
+    if n <= 1:
+        raise DataError(f"--box {x:g},{y:g},{w:g},{h:g}: segmentation found no object in the box")
+    largest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    fg = np.where(labels == largest, 255, 0).astype(np.uint8)
+    # fill holes: everything not reachable from the border as background is object
+    contours, _ = cv2.findContours(fg, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    filled = np.zeros_like(fg)
+    cv2.drawContours(filled, contours, -1, 255, thickness=cv2.FILLED)
+    return filled
+
+
+def polygon_mask(points: np.ndarray, frame_size: tuple[int, int]) -> np.ndarray:
+    """Rasterise a closed polygon ``(P, 2)`` into a uint8 mask of ``frame_size = (w, h)``."""
+    import cv2
+
+    w, h = frame_size
+    m = np.zeros((h, w), np.uint8)
+    pts = np.round(np.asarray(points) * 16).astype(np.int32).reshape(-1, 1, 2)
+    cv2.fillPoly(m, [pts], 255, lineType=cv2.LINE_8, shift=4)
+    return m
+
+
+def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
+    """Intersection over union of two binary masks."""
+    a, b = np.asarray(a) > 0, np.asarray(b) > 0
+    union = np.logical_or(a, b).sum()
+    return float(np.logical_and(a, b).sum() / union) if union else 0.0
