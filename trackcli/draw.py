@@ -171,3 +171,60 @@ def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
     a, b = np.asarray(a) > 0, np.asarray(b) > 0
     union = np.logical_or(a, b).sum()
     return float(np.logical_and(a, b).sum() / union) if union else 0.0
+
+
+# ---------------------------------------------------------------------------------------------
+# Templates and previews
+
+
+def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: bool = True, clip: str | None = None,
+                 frame: int = 0, frame_size: tuple[int, int] | None = None, source: str = ""):
+    """Fit a B-spline with ``n_ctrl`` control points to an ordered outline; return a Template."""
+    from .spline import fit
+    from .template import Template
+
+    outline = np.asarray(outline, dtype=float)
+    if len(outline) < n_ctrl:
+        # too few points to pin every control point: resample the polygon densely first
+        outline = _resample_polygon(outline, max(4 * n_ctrl, 64), closed)
+    Q = fit(outline, n_ctrl, degree=degree, closed=closed)
+    cp = np.column_stack([Q[:n_ctrl], Q[n_ctrl:]])
+    return Template(cp, degree=degree, closed=closed, clip=clip, frame=frame, frame_size=frame_size, source=source)
+
+
+def _resample_polygon(points: np.ndarray, n: int, closed: bool) -> np.ndarray:
+    pts = np.vstack([points, points[:1]]) if closed else points
+    seg = np.hypot(*np.diff(pts, axis=0).T)
+    t = np.concatenate([[0.0], np.cumsum(seg)])
+    u = np.linspace(0.0, t[-1], n, endpoint=not closed)
+    return np.column_stack([np.interp(u, t, pts[:, 0]), np.interp(u, t, pts[:, 1])])
+
+
+def render_preview(image_bgr: np.ndarray, template, *, n_normals: int = 24, half_width: float = 15.0) -> np.ndarray:
+    """Draw the curve (green), control polygon (blue) and measurement normals (yellow) over the frame."""
+    import cv2
+
+    from .spline import dense_polygon
+
+    basis = template.basis()
+    Q = template.Q
+    vis = image_bgr.copy()
+    scale = max(1, int(round(max(vis.shape[:2]) / 640)))
+    sampler = basis.sampler(basis.measurement_params(n_normals))
+    pts, nrm = sampler.points_normals(Q)
+
+    def ipts(p: np.ndarray) -> np.ndarray:
+        return np.round(np.asarray(p) * 16).astype(np.int32).reshape(-1, 1, 2)
+
+    for p, n in zip(pts, nrm):
+        a, b = p - half_width * n, p + half_width * n
+        cv2.line(vis, tuple(ipts(a)[0, 0]), tuple(ipts(b)[0, 0]), (0, 220, 255), scale, cv2.LINE_AA, shift=4)
+    cp = template.control_points
+    cv2.polylines(vis, [ipts(cp)], template.closed, (255, 120, 0), scale, cv2.LINE_AA, shift=4)
+    for c in cp:
+        cv2.circle(vis, tuple(ipts(c)[0, 0]), 3 * 16 * scale, (255, 120, 0), -1, cv2.LINE_AA, shift=4)
+    curve = dense_polygon(Q, basis)
+    cv2.polylines(vis, [ipts(curve)], template.closed, (0, 255, 0), 2 * scale, cv2.LINE_AA, shift=4)
+    for p in pts:
+        cv2.circle(vis, tuple(ipts(p)[0, 0]), 2 * 16 * scale, (0, 0, 255), -1, cv2.LINE_AA, shift=4)
+    return vis
