@@ -401,8 +401,11 @@ def fit_ar2(data: Any, tau: float, *, mean: Any = None, enforce_stability: bool 
     directions whose singular values fall below ``MEAN_SINGULAR_TOL`` the mean is taken
     from the data (the average of the shapes in the fit) and the component of ``D̂``
     there — a constant drift that the mean form of the model cannot express — is
-    dropped; its size is reported as ``dropped_drift``.  Other directions keep the
-    maximum-likelihood value.
+    dropped; its size is reported as ``dropped_drift``, and ``Ĉ`` grows by its outer
+    product, since the returned model explains that drift as driving noise.  Other
+    directions keep the maximum-likelihood value.  A fit that is merely close to a
+    random walk keeps ``X̄ = (I - Â2 - Â1)⁻¹ D̂`` even if that lies far from the data:
+    the model's one-step predictions near the data are unaffected.
 
     Raises
     ------
