@@ -102,7 +102,7 @@ def _check_metric(H: Any, nx: int) -> np.ndarray:
 # The model
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Mode:
     """One mode of an AR(2) model (AC §11.3, eqs 11.10-11.13).
 
