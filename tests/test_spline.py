@@ -337,7 +337,9 @@ def test_fit_recovers_known_closed_spline(degree):
     pts = dense_polygon(Q, basis, 120)
     Qf = fit(pts, 8, degree=degree)
     np.testing.assert_allclose(Qf, Q, atol=1e-3)  # on a curve ~80 px across
-    np.testing.assert_allclose(dense_polygon(Qf, basis, 500), dense_polygon(Q, basis, 500), atol=1e-4)
+    np.testing.assert_allclose(
+        dense_polygon(Qf, basis, 500), dense_polygon(Q, basis, 500), atol=1e-4
+    )
     assert np.abs(fit(pts, 8, degree=degree, refine=0) - Q).max() > 0.1
 
 

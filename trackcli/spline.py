@@ -153,7 +153,8 @@ class SplineBasis:
             coef[np.arange(N + d), np.arange(N + d) % N] = 1.0
         else:
             L = self.L
-            knots = np.concatenate([np.zeros(d), np.arange(L + 1, dtype=float), np.full(d, float(L))])
+            inner = np.arange(L + 1, dtype=float)
+            knots = np.concatenate([np.zeros(d), inner, np.full(d, float(L))])
             coef = np.eye(N)
         spl = BSpline(knots, coef, d, extrapolate=True)
         return tuple([spl] + [spl.derivative(nu) for nu in range(1, d + 1)])
@@ -179,7 +180,8 @@ class SplineBasis:
 
         ``nu`` may be 0 (the basis itself) up to ``degree``.
         """
-        if isinstance(nu, bool) or not isinstance(nu, (int, np.integer)) or not 0 <= nu <= self.degree:
+        valid = isinstance(nu, (int, np.integer)) and not isinstance(nu, bool)
+        if not valid or not 0 <= nu <= self.degree:
             raise ConfigError(
                 f"derivative order must be an integer in [0, {self.degree}], got {nu!r}"
             )
@@ -247,8 +249,8 @@ def signed_area(Q, basis: SplineBasis) -> np.ndarray:
     """Exact signed area enclosed by closed spline curves.
 
     Positive when the curve turns from +x towards +y (clockwise on the screen, since
-    ``y`` points down).  Open curves are closed by the chord from ``r(L)`` to ``r(0)``
-    only implicitly: the value is then ``½ ∫ (x y' − y x') ds`` without the chord.
+    ``y`` points down).  For an open curve the value is ``½ ∫ (x y' − y x') ds`` along
+    the curve alone, without the closing chord.
 
     Parameters
     ----------
@@ -293,7 +295,9 @@ class CurveSampler:
             raise ConfigError(f"CurveSampler needs a SplineBasis, got {type(self.basis).__name__}")
         s = np.array(self.s, dtype=float)
         if s.ndim != 1 or s.size == 0:
-            raise DataError(f"sampler parameters must be a non-empty 1-D array, got shape {s.shape}")
+            raise DataError(
+                f"sampler parameters must be a non-empty 1-D array, got shape {s.shape}"
+            )
         object.__setattr__(self, "s", _readonly(s))
         object.__setattr__(self, "B", _readonly(self.basis.basis(s)))
         object.__setattr__(self, "dB", _readonly(self.basis.basis_derivative(s, 1)))
