@@ -174,6 +174,225 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, n_ctrl, degree, open
     click.echo(f"wrote {out} and {png}" + (f" and {rrd}" if rrd else ""))
 
 
+# ---------------------------------------------------------------------------------------------
+# shared helpers
+
+
+def _settings(config: str | None, overrides: dict):
+    from .config import load_settings
+
+    return load_settings(config, {k: v for k, v in overrides.items() if v is not None})
+
+
+def _open(clip: str, settings):
+    from .video import open_video
+
+    v = settings.video
+    return open_video(clip, fps=v.fps, start=v.start, end=v.end, step=v.step)
+
+
+def _progress(ctx: click.Context, length: int, label: str):
+    quiet = bool(ctx.find_root().obj and ctx.find_root().obj.get("quiet"))
+    import os
+
+    hidden = quiet or not sys.stderr.isatty() and os.environ.get("TRACKCLI_PROGRESS") != "1"
+    return click.progressbar(length=length, label=label, file=sys.stderr, show_pos=True, width=30,
+                             hidden=hidden)
+
+
+def _clip_stem(clip: str) -> str:
+    from pathlib import Path
+
+    p = Path(clip)
+    return p.stem if p.suffix else p.name
+
+
+def _echo_json(obj) -> None:
+    import json
+
+    click.echo(json.dumps(obj, allow_nan=False, default=_json_default))
+
+
+def _json_default(o):
+    import numpy as np
+
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    return str(o)
+
+
+def _clean_json(d):
+    import math
+
+    if isinstance(d, dict):
+        return {k: _clean_json(v) for k, v in d.items()}
+    if isinstance(d, (list, tuple)):
+        return [_clean_json(v) for v in d]
+    if isinstance(d, float) and not math.isfinite(d):
+        return None
+    return d
+
+
+video_options = [
+    click.option("--fps", type=click.FloatRange(min=0, min_open=True), help="Frame rate of image folders (they carry none)."),
+    click.option("--start", type=click.IntRange(min=0), help="First frame (inclusive)."),
+    click.option("--end", type=click.IntRange(min=1), help="Last frame (exclusive)."),
+    click.option("--step", type=click.IntRange(min=1), help="Use every STEP-th frame."),
+]
+
+
+def with_video_options(f):
+    for opt in reversed(video_options):
+        f = opt(f)
+    return f
+
+
+def _video_overrides(fps, start, end, step) -> dict:
+    return {"video.fps": fps, "video.start": start, "video.end": end, "video.step": step}
+
+
+# ---------------------------------------------------------------------------------------------
+# track
+
+
+@cli.command("track")
+@click.argument("clips", nargs=-1, required=True, type=click.Path())
+@click.option("-c", "--config", type=click.Path(dir_okay=False), help="Configuration file (YAML).")
+@click.option("--model", type=click.Path(dir_okay=False), help="Model learned by `trackcli learn`.")
+@click.option("--template", type=click.Path(dir_okay=False),
+              help="Template drawn on this clip: the initial placement (with --model) or, alone, "
+                   "the shape to track with hand-set dynamics.")
+@click.option("--tracker", type=click.Choice(["condensation", "kalman"]), default="condensation", show_default=True,
+              help="CONDENSATION (particle filter, robust to clutter) or the Kalman contour tracker.")
+@click.option("--particles", type=click.IntRange(min=1), help="CONDENSATION sample-set size N (condensation.particles).")
+@click.option("--seed", type=click.IntRange(min=0), help="Random seed (same seed, same numbers).")
+@click.option("-o", "--outdir", type=click.Path(file_okay=False), default="trackcli-out", show_default=True,
+              help="Folder for the outputs.")
+@click.option("--no-rrd", is_flag=True, help="Do not write Rerun recordings.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON summary line per clip on stdout.")
+@with_video_options
+@click.pass_context
+def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, outdir, no_rrd, as_json, fps, start, end, step):
+    """Follow the object through each CLIP (video file or image folder).
+
+    \b
+    What is tracked:
+      --model M --template T   the model's shape-space and learned dynamics, placed where T
+                               was drawn on this clip (the usual case)
+      --model M                the model as learned, starting where its template was drawn
+      --template T             T's shape-space with hand-set dynamics (configs/)
+
+    \b
+    Per clip, in OUTDIR:
+      CLIP.TRACKER.csv         per-frame estimates (see README: track format)
+      CLIP.TRACKER.rrd         Rerun recording: frames, contour, particles or gates, series
+      CLIP.TRACKER.config.yaml the effective configuration
+    and one summary line on stdout.
+    """
+    from pathlib import Path
+
+    import numpy as np
+
+    from .config import dump_yaml
+    from .outputs import ensure_dir, write_text
+    from .runs import run_clip
+
+    if not model and not template:
+        raise click.UsageError("give --model, --template, or both")
+    settings = _settings(config, {"condensation.particles": particles, "seed": seed,
+                                  **_video_overrides(fps, start, end, step)})
+    out = ensure_dir(outdir)
+    stems = [_clip_stem(c) for c in clips]
+    if len(set(stems)) != len(stems):
+        raise click.UsageError("two clips have the same name; run them into different --outdir folders")
+    failures = 0
+    for clip, stem in zip(clips, stems):
+        with _open(clip, settings) as video:
+            space, dynamics, X0, source = _tracking_setup(model, template, settings, video)
+            rng = np.random.default_rng(settings.seed)
+            if tracker == "kalman":
+                from .tracking import track_kalman
+
+                def make(frames, space=space, dynamics=dynamics, X0=X0):
+                    return track_kalman(frames, space, dynamics, settings.measurement, settings.kalman, X0=X0)
+            else:
+                from .tracking import track_condensation
+
+                def make(frames, space=space, dynamics=dynamics, X0=X0, rng=rng):
+                    return track_condensation(frames, space, dynamics, settings.measurement,
+                                              settings.condensation, rng, X0=X0)
+            base = out / f"{stem}.{tracker}"
+            write_text(Path(f"{base}.config.yaml"), dump_yaml(settings))
+            params = {"clip": str(clip), "tracker": tracker, "source": source, "settings": _plain_settings(settings)}
+            with _progress(ctx, len(video), f"{stem} ({tracker})") as bar:
+                summary = run_clip(video, make, space, tracker=tracker, csv_path=Path(f"{base}.csv"),
+                                   rrd_path=None if (no_rrd or not settings.output.rrd) else Path(f"{base}.rrd"),
+                                   params=params, jpeg_quality=settings.output.jpeg_quality,
+                                   progress=bar.update, recording_id=f"{stem}-{tracker}-{settings.seed}")
+        if as_json:
+            _echo_json(_clean_json(summary.to_dict()))
+        else:
+            click.echo(summary.line())
+    ctx.exit(1 if failures else 0)
+
+
+def _plain_settings(settings):
+    from .config import to_dict
+
+    return to_dict(settings)
+
+
+def _tracking_setup(model_path, template_path, settings, video):
+    """(space, dynamics, X0, description) for `track`."""
+    import numpy as np
+
+    from .model import load_model, place_space
+    from .template import load_template
+    from .tracking import build_space, handset_dynamics
+
+    tau = 1.0 / video.fps
+    if model_path:
+        model = load_model(model_path)
+        if template_path:
+            tmpl = load_template(template_path)
+            _check_template_frame(tmpl, video)
+            space, X0 = place_space(model.space, tmpl)
+            dynamics = _rebase_dynamics(model.dynamics, X0, tau)
+            return space, dynamics, X0, f"model {model_path} placed by template {template_path}"
+        space = model.space
+        return space, _rebase_dynamics(model.dynamics, None, tau), np.zeros(space.Nx), f"model {model_path}"
+    tmpl = load_template(template_path)
+    _check_template_frame(tmpl, video)
+    space = build_space(tmpl, settings.shape_space)
+    return space, handset_dynamics(space, settings.dynamics, tau), np.zeros(space.Nx), f"template {template_path} (hand-set dynamics)"
+
+
+def _check_template_frame(tmpl, video) -> None:
+    if tmpl.frame_size and tuple(tmpl.frame_size) != (video.width, video.height):
+        from .errors import TemplateError
+
+        raise TemplateError(f"the template was drawn on a {tmpl.frame_size[0]}x{tmpl.frame_size[1]} frame "
+                            f"but {video.path} is {video.width}x{video.height}; draw a template on this clip")
+
+
+def _rebase_dynamics(dynamics, X0, tau):
+    """The model's dynamics for a new clip: translation mean moved to X0, tau checked."""
+    import math
+
+    from .dynamics import AR2
+
+    if not math.isclose(dynamics.tau, tau, rel_tol=1e-3):
+        log.warning("the model was learned at %.3g frames/s but this clip runs at %.3g frames/s; "
+                    "its dynamics are used per frame as learned", 1 / dynamics.tau, 1 / tau)
+    if X0 is None:
+        return dynamics
+    mean = dynamics.mean.copy()
+    mean[:2] = X0[:2]
+    return AR2(dynamics.A2, dynamics.A1, dynamics.B0, mean, dynamics.tau)
+
+
 def main() -> None:
     cli(prog_name="trackcli")
 

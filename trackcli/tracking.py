@@ -1,0 +1,310 @@
+"""The frame loops: Kalman contour tracking (AC Fig 10.3) and CONDENSATION (AC Fig 12.6).
+
+Each tracker is a generator over frames that yields one :class:`FrameResult` per frame; it
+holds no output code.  The command line consumes the results to write CSV rows, recordings
+and progress bars.  Filter steps themselves are the pure functions of
+:mod:`trackcli.kalman` and :mod:`trackcli.condensation`; features along normals come from
+:mod:`trackcli.measure`.
+
+Notation: ``X`` shape vectors in the shape-space ``Q = W X + Q0`` of the template;
+``M`` measurement normals; ``tau`` the frame interval.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Iterator
+
+import numpy as np
+
+from . import condensation as cond
+from . import kalman, measure
+from .config import CondensationSettings, DynamicsSettings, KalmanSettings, MeasurementSettings, SubspaceDynamics
+from .dynamics import AR2, SubspaceModel, partitioned
+from .errors import ConfigError
+from .shape_space import ShapeSpace
+from .spline import CurveSampler, curve_area_centroid, dense_polygon
+
+#: A frame is reported lost by the Kalman tracker when fewer than this fraction of normals found a feature.
+KALMAN_LOST_FRACTION = 0.3
+
+
+@dataclass(frozen=True, eq=False)
+class FrameResult:
+    """What a tracker estimated on one frame.
+
+    Attributes
+    ----------
+    index, time : int, float
+        Original frame index and time (s).
+    X : ndarray of shape (Nx,)
+        Estimated shape vector (Kalman: posterior mean; CONDENSATION: weighted mean).
+    X_std : ndarray of shape (Nx,)
+        Posterior standard deviation of each component.
+    contour : ndarray of shape (P, 2)
+        Dense polygon of the estimated curve, image ``(x, y)``.
+    centroid : ndarray of shape (2,)
+        Area centroid of the estimated curve.
+    bbox : tuple of float
+        ``(x, y, w, h)`` tight box of the contour.
+    n_found : int
+        Normals on which a feature was found (Kalman; for CONDENSATION, on the mean curve).
+    n_normals : int
+        ``M``.
+    gate_rms : float
+        RMS search half-width along the normals, px.
+    ess : float
+        Effective sample size (CONDENSATION; NaN for Kalman).
+    loglik : float
+        Log-likelihood of the estimated curve under the clutter model (AC eq 12.2; NaN for Kalman).
+    lost : bool
+        Tracker's own verdict that it has no lock.
+    display : dict
+        Extra arrays for recordings (measurement points, gate ends, features, particles, histogram).
+    """
+
+    index: int
+    time: float
+    X: np.ndarray
+    X_std: np.ndarray
+    contour: np.ndarray
+    centroid: np.ndarray
+    bbox: tuple[float, float, float, float]
+    n_found: int
+    n_normals: int
+    gate_rms: float
+    ess: float = math.nan
+    loglik: float = math.nan
+    lost: bool = False
+    display: dict[str, Any] = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------------------------
+# Set-up shared by both trackers
+
+
+def measurement_sampler(space: ShapeSpace, n_normals: int) -> CurveSampler:
+    """The ``M`` measurement points equally spaced in the spline parameter."""
+    basis = space.basis
+    return basis.sampler(basis.measurement_params(n_normals))
+
+
+def _subspace_part(space: ShapeSpace, E: np.ndarray, s: SubspaceDynamics, tau: float, what: str) -> SubspaceModel:
+    try:
+        return SubspaceModel.oscillator(E, s.f, s.beta, s.rho, tau, gamma0=s.gamma0)
+    except ConfigError as exc:
+        raise ConfigError(f"dynamics.{what}: {exc}") from None
+
+
+def handset_dynamics(space: ShapeSpace, settings: DynamicsSettings, tau: float) -> AR2:
+    """Partitioned damped-oscillator dynamics (AC §9.6, eq 9.30) on translation and the rest.
+
+    The translation subspace gets ``settings.translation``; its H-orthogonal complement
+    (rotation, scale and other deformation) gets ``settings.deformation``.  The mean shape is
+    the template (``X̄ = 0``).
+    """
+    Es = space.translation_projector()
+    parts = [_subspace_part(space, Es, settings.translation, tau, "translation")]
+    if space.Nx > 2:
+        parts.append(_subspace_part(space, np.eye(space.Nx) - Es, settings.deformation, tau, "deformation"))
+    return partitioned(space.H, parts, np.zeros(space.Nx), tau)
+
+
+def contour_summary(space: ShapeSpace, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[float, float, float, float]]:
+    """Dense contour ``(P, 2)``, area centroid ``(2,)`` and box ``(x, y, w, h)`` of shape ``X``."""
+    Q = space.to_control(X)
+    poly = dense_polygon(Q, space.basis)
+    if space.basis.closed:
+        _, centroid = curve_area_centroid(Q, space.basis)
+        centroid = np.asarray(centroid, dtype=float)
+    else:
+        centroid = poly.mean(axis=0)
+    lo, hi = poly.min(axis=0), poly.max(axis=0)
+    return poly, centroid, (float(lo[0]), float(lo[1]), float(hi[0] - lo[0]), float(hi[1] - lo[1]))
+
+
+def _feature_image(image: np.ndarray, m: MeasurementSettings) -> np.ndarray:
+    return measure.feature_image(image, channel=m.channel, sigma=m.smoothing, edge_sigma=m.edge_sigma)
+
+
+# ---------------------------------------------------------------------------------------------
+# Kalman contour tracker (AC Fig 10.3)
+
+
+def kalman_sigma(rho_f: float, n_normals: int, nx: int) -> float:
+    """Per-normal measurement standard deviation ``σ = ρ_f √(M / Nx)`` (AC eq 8.17)."""
+    return rho_f * math.sqrt(n_normals / nx)
+
+
+def track_kalman(
+    frames: Iterable[Any],
+    space: ShapeSpace,
+    dynamics: AR2,
+    measurement: MeasurementSettings,
+    settings: KalmanSettings,
+    *,
+    X0: np.ndarray | None = None,
+) -> Iterator[FrameResult]:
+    """Run the second-order Kalman contour tracker over ``frames``.
+
+    Parameters
+    ----------
+    frames : iterable of objects with ``index``, ``time``, ``image`` (BGR)
+        E.g. a :class:`trackcli.video.Video`.
+    space : ShapeSpace
+    dynamics : AR2
+        Its ``tau`` should equal the clip's frame interval.
+    measurement, settings : settings sections
+    X0 : ndarray of shape (Nx,), optional
+        Initial shape (default 0: the template where it was drawn).
+
+    Initial conditions (AC §10.1): ``settings.init = "static"`` starts at ``X0`` with the
+    closed-loop steady-state covariance of a full set of measurements on that curve;
+    ``"unknown"`` starts from the open-loop steady state of the dynamics.
+    """
+    M = measurement.n_normals
+    sampler = measurement_sampler(space, M)
+    sigma = kalman_sigma(settings.rho_f, M, space.Nx)
+    X0 = np.zeros(space.Nx) if X0 is None else np.asarray(X0, dtype=float)
+    if settings.init == "static":
+        h0 = space.measurement_vectors(X0, sampler)
+        S_full = h0.T @ h0 / sigma**2
+        state = kalman.init_known_static(X0, dynamics, S=S_full)
+    else:
+        state = kalman.init_unknown(dynamics)
+    first = True
+    for frame in frames:
+        predicted = state if first else kalman.predict(state, dynamics)
+        first = False
+        Xp = predicted.X
+        pts, nrm = space.points_normals(Xp, sampler)
+        h = space.measurement_vectors(Xp, sampler, nrm)
+        gates = np.clip(settings.kappa * kalman.gate_rho(predicted, h), settings.min_gate, settings.max_gate)
+        fimg = _feature_image(frame.image, measurement)
+        feats = measure.kalman_features(fimg, pts, nrm, gates, threshold=measurement.threshold,
+                                        polarity=measurement.polarity, max_half_width=settings.max_gate)
+        Z, S = measure.aggregate(h, feats.nu, feats.found, sigma)
+        state = kalman.assimilate(predicted, Z, S)
+        X = state.X
+        contour, centroid, bbox = contour_summary(space, X)
+        n_found = int(feats.found.sum())
+        yield FrameResult(
+            index=int(frame.index), time=float(frame.time), X=X.copy(), X_std=state.X_std.copy(),
+            contour=contour, centroid=centroid, bbox=bbox, n_found=n_found, n_normals=M,
+            gate_rms=float(np.sqrt(np.mean(gates**2))), lost=n_found < KALMAN_LOST_FRACTION * M,
+            display={
+                "points": pts,
+                "gate_inner": pts - gates[:, None] * nrm,
+                "gate_outer": pts + gates[:, None] * nrm,
+                "features": pts[feats.found] + feats.nu[feats.found, None] * nrm[feats.found],
+            },
+        )
+
+
+# ---------------------------------------------------------------------------------------------
+# CONDENSATION (AC Fig 12.6)
+
+
+def initial_covariance(space: ShapeSpace, settings: CondensationSettings) -> np.ndarray:
+    """Diagonal covariance of the hand-placed initial sample set (``init: template``)."""
+    var = np.full(space.Nx, settings.init_deformation**2)
+    var[:2] = settings.init_translation**2
+    return np.diag(var)
+
+
+def track_condensation(
+    frames: Iterable[Any],
+    space: ShapeSpace,
+    dynamics: AR2,
+    measurement: MeasurementSettings,
+    settings: CondensationSettings,
+    rng: np.random.Generator,
+    *,
+    X0: np.ndarray | None = None,
+    hist_range: tuple[float, float] | None = None,
+) -> Iterator[FrameResult]:
+    """Run CONDENSATION over ``frames`` with the clutter observation model (AC eq 12.2).
+
+    The sample set starts either as a Gaussian about ``X0`` (``settings.init = "template"``)
+    or from the steady state of the motion model (``"steady_state"``), with
+    ``initial_particles`` samples falling to ``particles`` over ``schedule_frames`` frames.
+    On the first frame the initial samples are weighted without prediction; afterwards every
+    frame is select → predict → weight.
+
+    ``hist_range`` is the range of horizontal translation ``tx`` covered by the histogram
+    (default: the frame width around the template).
+    """
+    M = measurement.n_normals
+    sampler = measurement_sampler(space, M)
+    X0 = np.zeros(space.Nx) if X0 is None else np.asarray(X0, dtype=float)
+    schedule = cond.sample_size_schedule(settings.initial_particles, settings.particles, settings.schedule_frames)
+    n0 = schedule(0)
+    if settings.init == "template":
+        particles = cond.init_gaussian(X0, initial_covariance(space, settings), n0, rng)
+    else:
+        particles = cond.init_steady_state(dynamics, n0, rng)
+    edges = None
+    k = 0
+    for frame in frames:
+        fimg = _feature_image(frame.image, measurement)
+        if edges is None:
+            if hist_range is None:
+                w = frame.image.shape[1]
+                ox = float(space.origin[0])
+                hist_range = (-ox, w - ox)
+            edges = np.linspace(hist_range[0], hist_range[1], settings.histogram_bins + 1)
+
+        def loglik(X: np.ndarray) -> np.ndarray:
+            pts, nrm = space.points_normals(X, sampler)
+            return measure.log_likelihood(fimg, pts, nrm, h=settings.search, sigma=settings.sigma,
+                                          alpha=settings.alpha, threshold=measurement.threshold,
+                                          polarity=measurement.polarity)
+
+        if k == 0:
+            particles = cond.ParticleSet(particles.prev, particles.cur, loglik(particles.cur))
+            ess = particles.ess
+        else:
+            particles, info = cond.step(particles, dynamics, loglik, rng, n_out=schedule(k),
+                                        scheme=settings.resampling, ess_threshold=settings.ess_threshold)
+            ess = info.ess
+        k += 1
+        w = particles.weights
+        X = cond.weighted_mean(particles)
+        best = cond.best_sample(particles)
+        dev = particles.cur - X
+        X_std = np.sqrt(np.maximum(w @ (dev * dev), 0.0))
+        contour, centroid, bbox = contour_summary(space, X)
+        pts, nrm = space.points_normals(X, sampler)
+        loglik_mean = float(loglik(X[None])[0])
+        n_found = _normals_with_features(fimg, pts, nrm, settings, measurement)
+        hist = cond.weighted_histogram(particles, edges, component=0)
+        display: dict[str, Any] = {"points": pts, "histogram": hist, "hist_edges": edges, "best": best}
+        if settings.display_particles:
+            top = np.argsort(w)[::-1][: settings.display_particles]
+            display["particle_contours"] = space.points(particles.cur[top], sampler)
+            display["particle_weights"] = w[top] / max(float(w.max()), 1e-300)
+        display["particle_centroids"] = particles.cur[:, :2] + space.origin
+        display["weights"] = w
+        yield FrameResult(
+            index=int(frame.index), time=float(frame.time), X=X, X_std=X_std, contour=contour,
+            centroid=centroid, bbox=bbox, n_found=n_found, n_normals=M, gate_rms=float(settings.search),
+            ess=float(ess), loglik=loglik_mean, lost=bool(ess < 1.5 and n_found < KALMAN_LOST_FRACTION * M),
+            display=display,
+        )
+
+
+def _normals_with_features(fimg, pts, nrm, settings: CondensationSettings, m: MeasurementSettings) -> int:
+    feats = measure.kalman_features(fimg, pts, nrm, settings.search, threshold=m.threshold, polarity=m.polarity,
+                                    max_half_width=max(settings.search, 1.0))
+    return int(feats.found.sum())
+
+
+def build_space(template: Any, kind: str) -> ShapeSpace:
+    """The constructive shape-space ``kind`` (translation, similarity, affine) on a template."""
+    from . import shape_space as ss
+
+    builders = {"translation": ss.translation, "similarity": ss.similarity, "affine": ss.affine}
+    if kind not in builders:
+        raise ConfigError(f"shape_space: expected one of {', '.join(builders)}, got {kind!r}")
+    return builders[kind](template.basis(), template.Q)

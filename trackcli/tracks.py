@@ -1,0 +1,131 @@
+"""The track format: one CSV row of estimates per frame.
+
+Columns, in order:
+
+``frame, time``
+    original frame index (0-based) and time in seconds;
+``X_<name>`` …
+    the estimated shape vector, one column per shape-space component (``X_tx, X_ty, …``);
+``std_<name>`` …
+    its posterior standard deviation;
+``cx, cy``
+    area centroid of the estimated contour, px;
+``bbox_x, bbox_y, bbox_w, bbox_h``
+    tight box of the estimated contour, px;
+``n_found, n_normals``
+    measurement normals that found a feature, and how many there are;
+``gate_rms``
+    RMS search half-width along the normals, px;
+``ess``
+    effective sample size (CONDENSATION; empty for Kalman);
+``loglik``
+    log-likelihood of the estimated contour under the clutter model (CONDENSATION; empty for Kalman);
+``lost``
+    1 when the tracker judges it has lost lock, else 0.
+
+Files are written atomically: a run that stops early leaves no half-written CSV.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from .errors import InputError
+from .outputs import atomic_path
+
+FIXED_AFTER = ["cx", "cy", "bbox_x", "bbox_y", "bbox_w", "bbox_h", "n_found", "n_normals", "gate_rms", "ess", "loglik", "lost"]
+
+
+def header(names: Sequence[str]) -> list[str]:
+    """Column names for a shape-space with component ``names``."""
+    return ["frame", "time", *[f"X_{n}" for n in names], *[f"std_{n}" for n in names], *FIXED_AFTER]
+
+
+def _fmt(v: float, digits: int = 6) -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return ""
+    return f"{v:.{digits}g}" if abs(v) < 1e-3 and v != 0 else f"{v:.{digits}f}".rstrip("0").rstrip(".")
+
+
+def row(result, ) -> list[str]:
+    """CSV cells of one :class:`~trackcli.tracking.FrameResult`."""
+    cells = [str(result.index), f"{result.time:.6f}"]
+    cells += [_fmt(float(v), 8) for v in result.X]
+    cells += [_fmt(float(v), 6) for v in result.X_std]
+    cells += [_fmt(float(result.centroid[0]), 3), _fmt(float(result.centroid[1]), 3)]
+    cells += [_fmt(float(v), 3) for v in result.bbox]
+    cells += [str(result.n_found), str(result.n_normals), _fmt(result.gate_rms, 4), _fmt(result.ess, 6),
+              _fmt(result.loglik, 6), "1" if result.lost else "0"]
+    return cells
+
+
+class TrackWriter:
+    """Write rows as results arrive; the file appears under its final name only on ``close``."""
+
+    def __init__(self, path: str | Path, names: Sequence[str]):
+        self.path = Path(path)
+        self._ctx = atomic_path(self.path)
+        tmp = self._ctx.__enter__()
+        self._fh = open(tmp, "w", newline="", encoding="utf-8")
+        self._csv = csv.writer(self._fh)
+        self._csv.writerow(header(names))
+
+    def write(self, result) -> None:
+        self._csv.writerow(row(result))
+
+    def __enter__(self) -> "TrackWriter":
+        return self
+
+    def __exit__(self, et, ev, tb) -> None:
+        self._fh.close()
+        self._ctx.__exit__(et, ev, tb)
+
+
+def read_track(path: str | Path, names: Sequence[str] | None = None) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Read ``(frames (T,), X (T, Nx), names)`` from a track CSV.
+
+    If ``names`` is given the file must have exactly those shape components.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{p}: no such track file")
+    try:
+        with open(p, newline="", encoding="utf-8") as fh:
+            rows = list(csv.reader(fh))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{p}: cannot read ({exc})") from None
+    if not rows or "frame" not in rows[0]:
+        raise InputError(f"{p}: not a trackcli track CSV (no 'frame' column in the header)")
+    head = rows[0]
+    x_cols = [i for i, c in enumerate(head) if c.startswith("X_")]
+    found = [head[i][2:] for i in x_cols]
+    if not x_cols:
+        raise InputError(f"{p}: no shape-vector columns (X_...) in the header")
+    if names is not None and list(names) != found:
+        raise InputError(f"{p}: shape components {found} do not match the shape-space {list(names)}")
+    fi = head.index("frame")
+    frames, X = [], []
+    for k, r in enumerate(rows[1:], 2):
+        if not r:
+            continue
+        try:
+            frames.append(int(r[fi]))
+            X.append([float(r[i]) for i in x_cols])
+        except (ValueError, IndexError):
+            raise InputError(f"{p} line {k}: malformed row") from None
+    if not frames:
+        raise InputError(f"{p}: the track has no rows")
+    return np.asarray(frames), np.asarray(X, dtype=float), found
+
+
+def write_rows(path: str | Path, names: Sequence[str], results: Iterable) -> Path:
+    """Write all ``results`` at once."""
+    with TrackWriter(path, names) as w:
+        for r in results:
+            w.write(r)
+    return Path(path)
