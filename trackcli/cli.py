@@ -393,6 +393,215 @@ def _rebase_dynamics(dynamics, X0, tau):
     return AR2(dynamics.A2, dynamics.A1, dynamics.B0, mean, dynamics.tau)
 
 
+# ---------------------------------------------------------------------------------------------
+# learn
+
+
+@cli.command("learn")
+@click.argument("clips", nargs=-1, type=click.Path())
+@click.option("-c", "--config", type=click.Path(dir_okay=False), help="Configuration file (YAML).")
+@click.option("--template", type=click.Path(dir_okay=False), required=True,
+              help="Template drawn on the (first) training clip.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Model file to write (.yaml).")
+@click.option("--cycles", type=click.IntRange(min=1, max=50), help="Track-learn cycles (learning.cycles).")
+@click.option("--shape-space", "shape_space", help="translation, similarity, affine, or pca:K (residual PCA "
+              "on top of translation, learned from the tracked outlines). Default: the config's shape_space.")
+@click.option("--from-tracks", "from_tracks", multiple=True, type=click.Path(dir_okay=False),
+              help="Learn from track CSVs already made instead of tracking CLIPS (repeatable).")
+@click.option("--tracks-fps", type=click.FloatRange(min=0, min_open=True),
+              help="Frame rate of the clips behind --from-tracks (default: the template clip's, else 25).")
+@click.option("--outdir", type=click.Path(file_okay=False),
+              help="Folder for the per-cycle tracks and recordings (default: beside the model, MODEL_training/).")
+@click.option("--no-rrd", is_flag=True, help="Do not write recordings of the training tracks.")
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
+@with_video_options
+@click.pass_context
+def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tracks, tracks_fps, outdir, no_rrd,
+              as_json, fps, start, end, step):
+    """Learn AR(2) dynamics from training CLIPS (AC Fig 11.1).
+
+    Tracks each clip with the Kalman contour tracker (hand-set dynamics from the config in
+    the first cycle), learns dynamics by maximum likelihood from all clips together
+    (statistics pooled, AC Fig 11.6), and repeats with the learned model for --cycles
+    cycles.  Writes the model, and per clip and cycle a track CSV and a recording.
+
+    \b
+    Example:
+      trackcli learn --template head.yaml sample_data/train.mp4 -o head-model.yaml --cycles 2
+    """
+    from pathlib import Path
+
+    from .config import dump_yaml
+    from .model import save_model
+    from .outputs import ensure_dir, write_text
+    from .template import load_template
+    from .train import learn_from_tracks, train
+
+    settings = _settings(config, {"learning.cycles": cycles, **_video_overrides(fps, start, end, step)})
+    tmpl = load_template(template)
+    out_model = Path(output)
+    if from_tracks:
+        if clips:
+            raise click.UsageError("give training CLIPS or --from-tracks, not both")
+        rate = tracks_fps or settings.video.fps or 25.0
+        model = learn_from_tracks(from_tracks, tmpl, settings, 1.0 / rate, shape_space)
+        save_model(out_model, model)
+        _learn_report(model, [], out_model, as_json)
+        return
+    if not clips:
+        raise click.UsageError("give at least one training CLIP (or --from-tracks)")
+    work = ensure_dir(outdir or out_model.with_name(out_model.stem + "_training"))
+    write_text(work / "config.yaml", dump_yaml(settings))
+    videos = []
+    try:
+        for c in clips:
+            videos.append(_open(c, settings))
+        for v in videos:
+            _check_template_frame(tmpl, v)
+
+        def bar(label, n):
+            return _progress(ctx, n, label)
+
+        model, records = train(videos, tmpl, settings, cycles=settings.learning.cycles, shape_space=shape_space,
+                               outdir=work, write_rrd=not no_rrd, progress=bar)
+    finally:
+        for v in videos:
+            v.close()
+    save_model(out_model, model)
+    _learn_report(model, records, out_model, as_json)
+
+
+def _learn_report(model, records, path, as_json: bool) -> None:
+    rep = model.provenance.get("learning", {})
+    cycles = [{"cycle": r.cycle, "seconds": round(r.seconds, 3),
+               "clips": [{"clip": s.clip, "frames": s.frames, "lost": s.frames_lost,
+                          "seconds": round(s.wall_seconds, 3)} for s in r.runs]} for r in records]
+    if as_json:
+        _echo_json(_clean_json({"model": str(path), "cycles": cycles, "learning": rep,
+                                "modes": [_mode_dict(m) for m in model.dynamics.modes()]}))
+        return
+    for c in cycles:
+        per = ", ".join(f"{Path_name(x['clip'])} {x['seconds']:.1f} s ({x['frames']} frames, {x['lost']} lost)"
+                        for x in c["clips"])
+        click.echo(f"cycle {c['cycle']}: {c['seconds']:.1f} s: {per}")
+    rho = rep.get("spectral_radius")
+    click.echo(f"wrote {path}: {model.space.kind} shape-space ({model.space.Nx} components), "
+               f"spectral radius {rho if rho is None else round(rho, 4)}; see `trackcli inspect {path}`")
+
+
+def Path_name(p: str) -> str:
+    from pathlib import Path
+
+    return Path(p).name
+
+
+def _mode_dict(m) -> dict:
+    return {"eigenvalue_modulus": m.modulus, "damping_per_s": m.beta, "frequency_hz": m.frequency,
+            "decay_time_s": m.decay_time, "period_s": m.period, "stable": m.stable,
+            "dominant": [[int(i), float(w)] for i, w in m.dominant(3)]}
+
+
+# ---------------------------------------------------------------------------------------------
+# inspect and simulate
+
+
+@cli.command("inspect")
+@click.argument("model_path", metavar="MODEL", type=click.Path(dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Machine-readable output.")
+def inspect_cmd(model_path, as_json):
+    """Show a model: shape-space, dynamics, modes (AC eqs 11.10-11.13), steady-state spread."""
+    import numpy as np
+
+    from .model import load_model
+
+    m = load_model(model_path)
+    dyn, space = m.dynamics, m.space
+    try:
+        rms = dyn.rms_displacement(space.H)
+        Es = space.translation_projector()
+        rms_t = dyn.rms_displacement(space.H, Es)
+        rms_d = dyn.rms_displacement(space.H, np.eye(space.Nx) - Es)
+    except Exception:  # unstable or constant-velocity models have no steady state
+        rms = rms_t = rms_d = None
+    modes = dyn.modes()
+    names = list(space.names)
+    info = {
+        "model": str(model_path),
+        "shape_space": {"kind": space.kind, "components": names, "control_points": space.Nq,
+                        "degree": space.basis.degree, "closed": space.basis.closed},
+        "frame_interval_s": dyn.tau,
+        "spectral_radius": dyn.spectral_radius(),
+        "stable": dyn.is_stable(),
+        "mean": dict(zip(names, map(float, dyn.mean))),
+        "steady_state_rms_px": {"total": rms, "translation": rms_t, "deformation": rms_d},
+        "A1": dyn.A1.tolist(), "A2": dyn.A2.tolist(), "B0": dyn.B0.tolist(),
+        "modes": [_mode_dict(x) for x in modes],
+        "provenance": m.provenance,
+    }
+    if as_json:
+        _echo_json(_clean_json(info))
+        return
+    fmt = lambda v: "n/a" if v is None else f"{v:.2f}"  # noqa: E731
+    click.echo(f"model {model_path}")
+    click.echo(f"  shape-space   {space.kind}: {', '.join(names)} ({space.Nq} control points, degree "
+               f"{space.basis.degree}, {'closed' if space.basis.closed else 'open'})")
+    click.echo(f"  frame interval {dyn.tau:.4g} s ({1 / dyn.tau:.3g} frames/s)")
+    click.echo(f"  stability     spectral radius {dyn.spectral_radius():.4f} ({'stable' if dyn.is_stable() else 'UNSTABLE'})")
+    click.echo(f"  steady-state RMS displacement: total {fmt(rms)} px, translation {fmt(rms_t)} px, "
+               f"deformation {fmt(rms_d)} px")
+    click.echo("  mean X         " + ", ".join(f"{n}={v:.4g}" for n, v in zip(names, dyn.mean)))
+    click.echo("  modes (slowest first):")
+    click.echo("    |lambda|  damping(1/s)  freq(Hz)  decay(s)  period(s)  dominant components")
+    for x in modes:
+        dom = ", ".join(f"{names[i]} {w:.2f}" for i, w in x.dominant(3))
+        per = f"{x.period:9.3f}" if np.isfinite(x.period) else "        -"
+        dec = f"{x.decay_time:8.3f}" if np.isfinite(x.decay_time) else "     inf"
+        click.echo(f"    {x.modulus:8.4f}  {x.beta:12.3f}  {x.frequency:8.3f}  {dec}  {per}  {dom}"
+                   + ("" if x.stable else "  UNSTABLE"))
+    prov = m.provenance
+    if prov:
+        src = prov.get("clips") or prov.get("tracks") or []
+        click.echo(f"  learned from  {', '.join(map(str, src))} ({prov.get('cycles', 0)} cycle(s))")
+
+
+@cli.command("simulate")
+@click.argument("model_path", metavar="MODEL", type=click.Path(dir_okay=False))
+@click.option("--frames", "n_frames", type=click.IntRange(min=2, max=1_000_000), default=250, show_default=True,
+              help="Length of each sample path.")
+@click.option("--paths", "n_paths", type=click.IntRange(min=1, max=20), default=3, show_default=True,
+              help="Number of sample paths.")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Random seed.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), help="Recording (.rrd) to write "
+              "(default: MODEL_sim.rrd); a PNG of the trajectories is written beside it.")
+@click.option("--size", help="Canvas 'W,H' for the PNG (default: the template's frame size).")
+def simulate_cmd(model_path, n_frames, n_paths, seed, output, size):
+    """Draw random sample paths from a model (AC Fig 11.7): the quickest sanity check.
+
+    The PNG shows, for each path, the centroid trajectory and the contour every 10th frame
+    over a blank canvas with the template in grey; the recording animates the paths.
+    """
+    from pathlib import Path
+
+    import numpy as np
+
+    from .model import load_model
+    from .simulate import render_paths, simulate_paths, record_paths
+
+    m = load_model(model_path)
+    out = Path(output) if output else Path(model_path).with_name(Path(model_path).stem + "_sim.rrd")
+    canvas = None
+    if size:
+        from .draw import parse_numbers
+
+        w, h = parse_numbers(size, 2, "--size")
+        canvas = (int(w), int(h))
+    paths = simulate_paths(m, n_frames, n_paths, np.random.default_rng(seed))
+    png = out.with_suffix(".png")
+    render_paths(m, paths, png, canvas=canvas)
+    record_paths(m, paths, out, seed=seed)
+    click.echo(f"wrote {out} and {png} ({n_paths} paths of {n_frames} frames)")
+
+
 def main() -> None:
     cli(prog_name="trackcli")
 

@@ -135,12 +135,12 @@ class KalmanSettings:
 class SubspaceDynamics:
     f: float = _f(0.0, "float", "oscillation frequency, Hz", lo=0)
     beta: float = _f(2.0, "float", "damping rate, 1/s (0 with f = 0: constant velocity)", lo=0)
-    rho: float | None = _f(2000.0, "float", "steady-state RMS displacement, px (AC eq 9.26)", lo=0, lo_open=True, nullable=True)
+    rho: float | None = _f(500.0, "float", "steady-state RMS displacement, px (AC eq 9.26)", lo=0, lo_open=True, nullable=True)
     gamma0: float | None = _f(None, "float", "constant-velocity noise, px/s^1.5 (AC eq 9.28); used when f = beta = 0", lo=0, lo_open=True, nullable=True)
 
 
 def _deformation_default() -> SubspaceDynamics:
-    return SubspaceDynamics(f=0.0, beta=10.0, rho=50.0)
+    return SubspaceDynamics(f=0.0, beta=2.0, rho=15.0)
 
 
 @dataclass(frozen=True)

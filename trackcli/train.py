@@ -1,0 +1,173 @@
+"""The track → learn cycle of AC Fig 11.1: training a model on clean clips.
+
+Cycle 1 tracks every training clip with the Kalman contour tracker under hand-set dynamics
+(AC §9.6) and learns AR(2) dynamics by maximum likelihood from the tracked shape sequences
+(AC Fig 11.6), pooling the clips' statistics.  Each further cycle re-tracks the clips with
+the dynamics just learned and learns again.  With a PCA shape-space (``pca:K``) the first
+cycle's tracked outlines also give a residual-PCA space on top of translation (AC eqs
+8.26–8.27); its shape vectors are the L2 projections of those outlines, and later cycles
+track in it.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from . import shape_space as ss
+from .config import Settings, to_dict
+from .dynamics import AR2
+from .errors import ConfigError, DataError
+from .learning import fit_ar2
+from .model import Model
+from .runs import RunSummary, run_clip
+from .shape_space import ShapeSpace
+from .template import Template
+from .tracking import build_space, handset_dynamics, track_kalman
+from .tracks import read_track
+
+log = logging.getLogger(__name__)
+
+
+def parse_shape_space(spec: str | None, default: str) -> tuple[str, int | None]:
+    """``"affine"`` → ("affine", None); ``"pca:3"`` → ("pca", 3)."""
+    spec = spec or default
+    m = re.fullmatch(r"pca:(\d+)", spec)
+    if m:
+        k = int(m.group(1))
+        if k < 1:
+            raise ConfigError(f"--shape-space pca:K needs K >= 1, got {spec!r}")
+        return "pca", k
+    if spec in ("translation", "similarity", "affine"):
+        return spec, None
+    raise ConfigError(f"--shape-space: expected translation, similarity, affine or pca:K, got {spec!r}")
+
+
+@dataclass
+class CycleRecord:
+    cycle: int
+    seconds: float
+    runs: list[RunSummary] = field(default_factory=list)
+    report: dict[str, Any] = field(default_factory=dict)
+
+
+def learn_from_sequences(sequences: Sequence[np.ndarray], tau: float, settings: Settings) -> tuple[AR2, dict[str, Any]]:
+    """Fit AR(2) dynamics to several shape sequences (statistics pooled)."""
+    model, report = fit_ar2(list(sequences), tau, enforce_stability=settings.learning.enforce_stability,
+                            max_spectral_radius=settings.learning.max_spectral_radius)
+    return model, report.to_dict()
+
+
+def pca_space(template: Template, outlines_Q: np.ndarray, k: int) -> tuple[ShapeSpace, list[float]]:
+    """Residual PCA on top of translation from tracked control vectors ``(T, 2Nq)``."""
+    base = ss.translation(template.basis(), template.Q)
+    space, explained = ss.residual_pca(base, outlines_Q, k)
+    return space, [float(v) for v in explained]
+
+
+def train(
+    clips: Sequence[Any],
+    template: Template,
+    settings: Settings,
+    *,
+    cycles: int,
+    shape_space: str | None,
+    outdir: Path,
+    write_rrd: bool = True,
+    progress: Callable[[str, int], Any] | None = None,
+) -> tuple[Model, list[CycleRecord]]:
+    """Run the track → learn cycle on opened training clips (``trackcli.video.Video``).
+
+    ``progress(label, n_frames)`` returns a context manager with ``update(1)`` (a progress bar).
+    Writes ``outdir/CLIP.cycleC.csv`` and ``.rrd`` per clip and cycle.
+    """
+    kind, k = parse_shape_space(shape_space, settings.shape_space)
+    taus = {round(1.0 / v.fps, 9) for v in clips}
+    tau = 1.0 / clips[0].fps
+    if len(taus) > 1:
+        log.warning("training clips have different frame rates; learning with the first clip's (%.3g frames/s)",
+                    clips[0].fps)
+    space = build_space(template, "affine" if kind == "pca" else kind)
+    dynamics = handset_dynamics(space, settings.dynamics, tau)
+    records: list[CycleRecord] = []
+    report: dict[str, Any] = {}
+    explained: list[float] | None = None
+    for cycle in range(1, cycles + 1):
+        t0 = time.perf_counter()
+        rec = CycleRecord(cycle, 0.0)
+        sequences = []
+        for video in clips:
+            stem = Path(str(video.path)).stem or Path(str(video.path)).name
+            base = outdir / f"{stem}.cycle{cycle}"
+
+            def make(frames, space=space, dynamics=dynamics):
+                return track_kalman(frames, space, dynamics, settings.measurement, settings.kalman)
+
+            label = f"cycle {cycle}: {stem}"
+            ctx = progress(label, len(video)) if progress else _NullBar()
+            with ctx as bar:
+                summary = run_clip(video, make, space, tracker="kalman", csv_path=Path(f"{base}.csv"),
+                                   rrd_path=Path(f"{base}.rrd") if write_rrd else None,
+                                   params={"cycle": cycle, "clip": str(video.path), "settings": to_dict(settings)},
+                                   jpeg_quality=settings.output.jpeg_quality, progress=bar.update,
+                                   recording_id=f"{stem}-cycle{cycle}")
+            rec.runs.append(summary)
+            _, X, _ = read_track(summary.csv, space.names)
+            sequences.append(X)
+        if kind == "pca" and cycle == 1:
+            outlines = [space.to_control(X) for X in sequences]
+            space, explained = pca_space(template, np.vstack(outlines), k)  # type: ignore[arg-type]
+            sequences = [space.project(Q) for Q in outlines]
+        dynamics, report = learn_from_sequences(sequences, tau, settings)
+        if explained is not None:
+            report["pca_explained"] = explained
+        rec.report = report
+        rec.seconds = time.perf_counter() - t0
+        records.append(rec)
+        log.info("cycle %d: learned from %d frames in %.1f s; spectral radius %.4f",
+                 cycle, sum(len(s) for s in sequences), rec.seconds, report.get("spectral_radius", math.nan))
+    provenance = {
+        "clips": [str(v.path) for v in clips],
+        "frames": [len(v) for v in clips],
+        "cycles": cycles,
+        "shape_space": shape_space or settings.shape_space,
+        "learning": report,
+    }
+    return Model(template, space, dynamics, settings, provenance), records
+
+
+class _NullBar:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *a):
+        return False
+
+    def update(self, n: int) -> None:
+        pass
+
+
+def learn_from_tracks(track_paths: Sequence[str], template: Template, settings: Settings, tau: float,
+                      shape_space: str | None) -> Model:
+    """Learn dynamics from track CSVs already made (no tracking)."""
+    kind, k = parse_shape_space(shape_space, settings.shape_space)
+    if kind == "pca":
+        raise ConfigError("--shape-space pca:K needs tracking (tracked outlines); not available with --from-tracks")
+    space = build_space(template, kind)
+    sequences = []
+    for p in track_paths:
+        frames, X, _ = read_track(p, space.names)
+        if len(frames) > 1 and len(set(np.diff(frames))) > 1:
+            raise DataError(f"{p}: frames are not evenly spaced; learning needs a regular sequence")
+        sequences.append(X)
+    dynamics, report = learn_from_sequences(sequences, tau, settings)
+    provenance = {"tracks": list(map(str, track_paths)), "frames": [len(s) for s in sequences],
+                  "cycles": 0, "shape_space": kind, "learning": report}
+    return Model(template, space, dynamics, settings, provenance)
