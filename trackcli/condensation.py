@@ -1,0 +1,591 @@
+"""CONDENSATION: conditional density propagation by sampling (AC §12.2, Fig 12.6; 000 Fig 2).
+
+The state density ``p(X_k | Z_k)`` is carried by ``N`` weighted samples of the second-order
+state ``(X_{k-1}; X_k)`` (AC eqs 9.16–9.18).  One time-step
+
+1. *selects* ``n_out`` samples by weight — the papers' cumulative weights ``c^(n)`` and a
+   binary search for the smallest ``j`` with ``c^(j) > r`` (``"multinomial"``), or the
+   lower-variance ``"systematic"`` and ``"stratified"`` schemes;
+2. *predicts* each with the AR(2) model and fresh noise (AC eq 9.15),
+   ``X_k - X̄ = A2 (X_{k-2} - X̄) + A1 (X_{k-1} - X̄) + B0 w_k``, ``w_k ~ N(0, I)``;
+3. *weights* each by the observation density, kept in the log domain (a contour likelihood
+   is a product over normals and underflows in linear form).
+
+Weights are stored as normalised log-weights.  Every function is pure: randomness comes
+from the ``numpy.random.Generator`` passed in, and nothing is modified in place.  The frame
+loop (decoding, the measurement model, reporting) lives elsewhere; ``step`` only needs a
+callable ``loglik(X) -> log p(Z | X)`` for an ``(n, Nx)`` array of shapes.
+
+A dynamics object is anything with numpy attributes ``A1``, ``A2`` of shape (Nx, Nx), ``B0``
+of shape (Nx, Nw) and ``mean`` of shape (Nx,).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from trackcli.errors import ConfigError, DataError
+
+__all__ = [
+    "RESAMPLERS",
+    "ParticleSet",
+    "StepInfo",
+    "best_sample",
+    "effective_sample_size",
+    "init_gaussian",
+    "init_steady_state",
+    "normalise_log_weights",
+    "predict",
+    "resample",
+    "sample_size_schedule",
+    "step",
+    "weighted_histogram",
+    "weighted_mean",
+]
+
+
+# ---------------------------------------------------------------------------------------------
+# Weights
+
+
+def normalise_log_weights(log_w: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Turn log-weights into normalised weights without overflow, underflow or NaN.
+
+    The largest log-weight is subtracted before exponentiating, so log-likelihoods of any
+    magnitude (e.g. all near ``-1e6``) normalise correctly.  NaN counts as ``-inf``.
+
+    Parameters
+    ----------
+    log_w : ndarray of shape (N,)
+        Unnormalised log-weights.
+
+    Returns
+    -------
+    weights : ndarray of shape (N,)
+        Non-negative, summing to 1.
+    degenerate : bool
+        True when no log-weight is finite and above ``-inf`` (every sample has zero
+        likelihood); the weights then fall back to uniform.  Where some log-weights are
+        ``+inf``, those samples share the weight equally (``degenerate`` stays False).
+    """
+    lw = _as_log_weights(log_w)
+    top = lw.max()
+    if top == -np.inf:
+        return np.full(lw.size, 1.0 / lw.size), True
+    if top == np.inf:
+        w = (lw == np.inf).astype(np.float64)
+        return w / w.sum(), False
+    w = np.exp(lw - top)
+    return w / w.sum(), False
+
+
+def _as_log_weights(log_w: np.ndarray) -> np.ndarray:
+    lw = np.array(log_w, dtype=np.float64)
+    if lw.ndim != 1 or lw.size == 0:
+        raise DataError(f"log_w: expected a non-empty 1-D array, got shape {lw.shape}")
+    lw[np.isnan(lw)] = -np.inf
+    return lw
+
+
+def _log_normalise(log_w: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Log of normalised weights, computed in the log domain; uniform if degenerate."""
+    lw = _as_log_weights(log_w)
+    top = lw.max()
+    if top == -np.inf:
+        return np.full(lw.size, -math.log(lw.size)), True
+    if top == np.inf:
+        w, _ = normalise_log_weights(lw)
+        with np.errstate(divide="ignore"):
+            return np.log(w), False
+    shifted = lw - top
+    return shifted - math.log(np.exp(shifted).sum()), False
+
+
+def effective_sample_size(weights: np.ndarray) -> float:
+    """Effective sample size ``(sum w)^2 / sum w^2`` of non-negative weights.
+
+    Equals ``N`` for uniform weights and 1 when one sample carries all the weight.  The
+    weights need not be normalised; for log-weights use ``ParticleSet.ess`` or normalise
+    first with :func:`normalise_log_weights`.
+    """
+    w = _as_weights(weights)
+    return float(w.sum() ** 2 / np.dot(w, w))
+
+
+def _as_weights(weights: np.ndarray) -> np.ndarray:
+    w = np.asarray(weights, dtype=np.float64)
+    if w.ndim != 1 or w.size == 0:
+        raise DataError(f"weights: expected a non-empty 1-D array, got shape {w.shape}")
+    if not (np.isfinite(w).all() and (w >= 0).all()):
+        raise DataError("weights: expected finite, non-negative values")
+    if not w.sum() > 0:
+        raise DataError("weights: all weights are zero")
+    return w
+
+
+# ---------------------------------------------------------------------------------------------
+# Resampling: each scheme maps weights (N,) to n_out parent indices, ascending.
+
+
+def _cumulative(w: np.ndarray) -> np.ndarray:
+    """Cumulative weights ``c^(1..N)``, normalised, with the last entry exactly 1."""
+    c = np.cumsum(w)
+    c /= c[-1]
+    c[-1] = 1.0
+    return c
+
+
+def _select(c: np.ndarray, r: np.ndarray) -> np.ndarray:
+    # The smallest j with c[j] > r, r in [0, 1): a zero-weight sample (c[j] == c[j-1]) is
+    # never chosen, and c[-1] == 1 > r keeps every index in range.
+    return np.searchsorted(c, r, side="right").astype(np.int64)
+
+
+def _multinomial(w: np.ndarray, n_out: int, rng: np.random.Generator) -> np.ndarray:
+    """Independent draws: ``n_out`` uniform numbers and a binary search each (AC Fig 12.6)."""
+    return _select(_cumulative(w), np.sort(rng.random(n_out)))
+
+
+def _systematic(w: np.ndarray, n_out: int, rng: np.random.Generator) -> np.ndarray:
+    """One uniform offset and an evenly spaced comb ``(k + U) / n_out``.
+
+    Sample ``j`` receives ``floor(n_out w_j)`` or ``ceil(n_out w_j)`` offspring.
+    """
+    return _select(_cumulative(w), (np.arange(n_out) + rng.random()) / n_out)
+
+
+def _stratified(w: np.ndarray, n_out: int, rng: np.random.Generator) -> np.ndarray:
+    """One uniform draw in each of ``n_out`` equal strata ``[k, k + 1) / n_out``."""
+    return _select(_cumulative(w), (np.arange(n_out) + rng.random(n_out)) / n_out)
+
+
+RESAMPLERS: dict[str, Callable[[np.ndarray, int, np.random.Generator], np.ndarray]] = {
+    "multinomial": _multinomial,
+    "systematic": _systematic,
+    "stratified": _stratified,
+}
+"""Resampling schemes by name: ``f(weights (N,), n_out, rng) -> indices (n_out,)``."""
+
+
+def resample(weights: np.ndarray, n_out: int, rng: np.random.Generator, scheme: str = "multinomial") -> np.ndarray:
+    """Choose ``n_out`` parents with probability proportional to ``weights``.
+
+    Parameters
+    ----------
+    weights : ndarray of shape (N,)
+        Non-negative weights, not all zero (normalisation is done here).
+    n_out : int
+        Number of samples to draw (>= 1); may differ from ``N``.
+    rng : numpy.random.Generator
+        Source of randomness.
+    scheme : {"multinomial", "systematic", "stratified"}
+        Selection scheme, see :data:`RESAMPLERS`.  All are unbiased: the expected number of
+        offspring of sample ``j`` is ``n_out w_j / sum(w)``.
+
+    Returns
+    -------
+    ndarray of shape (n_out,), int64
+        Indices of the chosen parents, in ascending order.
+    """
+    try:
+        scheme_fn = RESAMPLERS[scheme]
+    except (KeyError, TypeError):
+        raise ConfigError(f"resampling scheme: unknown value {scheme!r}; valid choices are {', '.join(RESAMPLERS)}") from None
+    return scheme_fn(_as_weights(weights), _check_count(n_out, "n_out"), rng)
+
+
+def _check_count(n: Any, name: str) -> int:
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ConfigError(f"{name}: expected an integer >= 1, got {n!r}")
+    return int(n)
+
+
+# ---------------------------------------------------------------------------------------------
+# Sample sets
+
+
+@dataclass(frozen=True)
+class ParticleSet:
+    """A weighted set of second-order states.
+
+    Attributes
+    ----------
+    prev : ndarray of shape (N, Nx)
+        ``X_{k-1}`` of every sample.
+    cur : ndarray of shape (N, Nx)
+        ``X_k`` of every sample.
+    log_w : ndarray of shape (N,)
+        Log-weights (normalised by :func:`step`; any offset is allowed).
+    """
+
+    prev: np.ndarray
+    cur: np.ndarray
+    log_w: np.ndarray
+
+    def __post_init__(self) -> None:
+        prev = np.asarray(self.prev, dtype=np.float64)
+        cur = np.asarray(self.cur, dtype=np.float64)
+        log_w = np.asarray(self.log_w, dtype=np.float64)
+        if cur.ndim != 2 or cur.shape[0] == 0 or cur.shape[1] == 0:
+            raise DataError(f"ParticleSet.cur: expected shape (N, Nx) with N, Nx >= 1, got {cur.shape}")
+        if prev.shape != cur.shape:
+            raise DataError(f"ParticleSet.prev: expected shape {cur.shape} like cur, got {prev.shape}")
+        if log_w.shape != (cur.shape[0],):
+            raise DataError(f"ParticleSet.log_w: expected shape ({cur.shape[0]},), got {log_w.shape}")
+        object.__setattr__(self, "prev", prev)
+        object.__setattr__(self, "cur", cur)
+        object.__setattr__(self, "log_w", log_w)
+
+    @property
+    def n(self) -> int:
+        """Number of samples N."""
+        return self.cur.shape[0]
+
+    @property
+    def nx(self) -> int:
+        """Shape-space dimension Nx."""
+        return self.cur.shape[1]
+
+    @property
+    def weights(self) -> np.ndarray:
+        """Normalised weights, shape (N,) (uniform if every log-weight is ``-inf``)."""
+        return normalise_log_weights(self.log_w)[0]
+
+    @property
+    def ess(self) -> float:
+        """Effective sample size of the weights."""
+        return effective_sample_size(self.weights)
+
+
+class StepInfo(NamedTuple):
+    """Diagnostics of one CONDENSATION step."""
+
+    ess: float
+    """Effective sample size of the new weights."""
+    resampled: bool
+    """Whether samples were selected by weight this step."""
+    degenerate: bool
+    """True when every new sample had zero likelihood (weights fell back to uniform)."""
+    ess_before: float
+    """Effective sample size of the incoming weights, on which the selection decision rests."""
+
+
+# ---------------------------------------------------------------------------------------------
+# Dynamics
+
+
+def _dynamics_arrays(dynamics: Any, nx: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    try:
+        a1 = np.asarray(dynamics.A1, dtype=np.float64)
+        a2 = np.asarray(dynamics.A2, dtype=np.float64)
+        b0 = np.asarray(dynamics.B0, dtype=np.float64)
+        mean = np.asarray(dynamics.mean, dtype=np.float64)
+    except AttributeError as exc:
+        raise DataError(f"dynamics: expected attributes A1, A2, B0 and mean ({exc})") from None
+    size = mean.shape[0] if mean.ndim == 1 else -1
+    if nx is not None and size != nx:
+        raise DataError(f"dynamics: mean has shape {mean.shape}, expected ({nx},) to match the samples")
+    if size < 1 or a1.shape != (size, size) or a2.shape != (size, size) or b0.ndim != 2 or b0.shape[0] != size:
+        raise DataError(
+            f"dynamics: expected A1, A2 of shape (Nx, Nx), B0 of shape (Nx, Nw) and mean of shape (Nx,); "
+            f"got {a1.shape}, {a2.shape}, {b0.shape}, {mean.shape}"
+        )
+    return a1, a2, b0, mean
+
+
+def predict(prev: np.ndarray, cur: np.ndarray, dynamics: Any, rng: np.random.Generator) -> np.ndarray:
+    """Draw ``X_{k+1}`` for every sample from the AR(2) model (AC eq 9.15).
+
+    Parameters
+    ----------
+    prev, cur : ndarray of shape (N, Nx)
+        ``X_{k-1}`` and ``X_k``.
+    dynamics
+        Object with ``A1``, ``A2`` (Nx, Nx), ``B0`` (Nx, Nw), ``mean`` (Nx,).
+    rng : numpy.random.Generator
+        Source of the fresh noise ``w ~ N(0, I_Nw)``.
+
+    Returns
+    -------
+    ndarray of shape (N, Nx)
+        ``X̄ + A2 (X_{k-1} - X̄) + A1 (X_k - X̄) + B0 w``.
+    """
+    prev = np.asarray(prev, dtype=np.float64)
+    cur = np.asarray(cur, dtype=np.float64)
+    a1, a2, b0, mean = _dynamics_arrays(dynamics, cur.shape[-1] if cur.ndim == 2 else None)
+    if cur.ndim != 2 or prev.shape != cur.shape:
+        raise DataError(f"prev and cur: expected equal shapes (N, Nx), got {prev.shape} and {cur.shape}")
+    noise = rng.standard_normal((cur.shape[0], b0.shape[1]))
+    return mean + (prev - mean) @ a2.T + (cur - mean) @ a1.T + noise @ b0.T
+
+
+def _spectral_radius(a1: np.ndarray, a2: np.ndarray) -> float:
+    """Largest eigenvalue modulus of the state matrix ``[[0, I], [A2, A1]]`` (AC eq 9.17)."""
+    nx = a1.shape[0]
+    state = np.zeros((2 * nx, 2 * nx))
+    state[:nx, nx:] = np.eye(nx)
+    state[nx:, :nx] = a2
+    state[nx:, nx:] = a1
+    return float(np.abs(np.linalg.eigvals(state)).max())
+
+
+# ---------------------------------------------------------------------------------------------
+# One time-step
+
+
+def step(
+    particles: ParticleSet,
+    dynamics: Any,
+    loglik: Callable[[np.ndarray], np.ndarray],
+    rng: np.random.Generator,
+    *,
+    n_out: int | None = None,
+    scheme: str = "multinomial",
+    ess_threshold: float | None = None,
+) -> tuple[ParticleSet, StepInfo]:
+    """One CONDENSATION time-step: select, predict, weight (AC Fig 12.6).
+
+    Parameters
+    ----------
+    particles : ParticleSet
+        Sample set at time ``k-1`` (``N`` samples).
+    dynamics
+        AR(2) model with ``A1``, ``A2`` (Nx, Nx), ``B0`` (Nx, Nw), ``mean`` (Nx,).
+    loglik : callable
+        ``loglik(X)`` with ``X`` of shape (n_out, Nx) returns the log observation density
+        ``log p(Z_k | X)`` of shape (n_out,); ``-inf`` marks an impossible sample.
+    rng : numpy.random.Generator
+        Source of randomness for selection and process noise.
+    n_out : int, optional
+        Size of the new set (default ``N``); see :func:`sample_size_schedule`.
+    scheme : str
+        Resampling scheme, a key of :data:`RESAMPLERS`.
+    ess_threshold : float in (0, 1], optional
+        When given, select by weight only if ``ESS / N < ess_threshold`` (or the set size
+        changes); otherwise the samples keep their weights and are all propagated.  ``None``
+        selects every step, as in the papers.
+
+    Returns
+    -------
+    ParticleSet
+        The weighted set at time ``k``: ``prev`` holds the parents' ``X_{k-1}``, ``cur`` the
+        predicted ``X_k``, ``log_w`` the normalised log-weights (uniform if degenerate).
+    StepInfo
+        Effective sample size, whether selection happened, whether the weights degenerated.
+    """
+    if not isinstance(particles, ParticleSet):
+        raise DataError(f"particles: expected a ParticleSet, got {type(particles).__name__}")
+    n_out = particles.n if n_out is None else _check_count(n_out, "n_out")
+    if scheme not in RESAMPLERS:
+        raise ConfigError(f"resampling scheme: unknown value {scheme!r}; valid choices are {', '.join(RESAMPLERS)}")
+    if ess_threshold is not None and not (0 < ess_threshold <= 1):
+        raise ConfigError(f"ess_threshold: expected a ratio in (0, 1] or None, got {ess_threshold!r}")
+
+    log_w, _ = _log_normalise(particles.log_w)
+    w = np.exp(log_w)
+    ess_before = effective_sample_size(w)
+    do_select = ess_threshold is None or n_out != particles.n or ess_before / particles.n < ess_threshold
+    if do_select:
+        parents = resample(w, n_out, rng, scheme)
+        prev, cur = particles.prev[parents], particles.cur[parents]
+        base = np.zeros(n_out)
+    else:
+        prev, cur, base = particles.prev, particles.cur, log_w
+
+    new = predict(prev, cur, dynamics, rng)
+    ll = np.asarray(loglik(new), dtype=np.float64)
+    if ll.shape != (n_out,):
+        raise DataError(f"loglik: expected an array of shape ({n_out},), got {ll.shape}")
+    if (ll == np.inf).any():
+        raise DataError("loglik: returned +inf; a log-likelihood must be finite or -inf")
+    out_log_w, degenerate = _log_normalise(base + ll)
+    out = ParticleSet(prev=cur, cur=new, log_w=out_log_w)
+    info = StepInfo(
+        ess=effective_sample_size(np.exp(out_log_w)),
+        resampled=bool(do_select),
+        degenerate=degenerate,
+        ess_before=ess_before,
+    )
+    return out, info
+
+
+# ---------------------------------------------------------------------------------------------
+# Estimates
+
+
+def weighted_mean(particles: ParticleSet) -> np.ndarray:
+    """Weighted mean ``E[X_k] = sum_n pi_n s_n`` of the current shapes: (Nx,)."""
+    return particles.weights @ particles.cur
+
+
+def best_sample(particles: ParticleSet) -> np.ndarray:
+    """The current shape of the highest-weight sample: (Nx,)."""
+    return particles.cur[int(np.argmax(particles.log_w))].copy()
+
+
+def weighted_histogram(particles: ParticleSet, edges: np.ndarray, *, component: int = 0) -> np.ndarray:
+    """Weighted histogram of one component of the current shapes (000 Fig 3, AC Fig 12.10).
+
+    Parameters
+    ----------
+    particles : ParticleSet
+        The sample set.
+    edges : ndarray of shape (B + 1,)
+        Increasing bin edges, fixed by the caller so frames can be compared.
+    component : int
+        Index into ``X`` (0 = horizontal translation in the usual shape-spaces).
+
+    Returns
+    -------
+    ndarray of shape (B,)
+        Probability mass per bin; mass outside ``[edges[0], edges[-1]]`` is dropped, so the
+        sum is at most 1.
+    """
+    edges = np.asarray(edges, dtype=np.float64)
+    if edges.ndim != 1 or edges.size < 2 or not (np.diff(edges) > 0).all():
+        raise ConfigError("edges: expected at least two strictly increasing bin edges")
+    if not -particles.nx <= component < particles.nx:
+        raise ConfigError(f"component: expected an index in [0, {particles.nx}), got {component!r}")
+    mass, _ = np.histogram(particles.cur[:, component], bins=edges, weights=particles.weights)
+    return mass
+
+
+# ---------------------------------------------------------------------------------------------
+# Initialisation
+
+
+def init_gaussian(
+    mean_x: np.ndarray,
+    cov: np.ndarray,
+    n: int,
+    rng: np.random.Generator,
+    *,
+    velocity: np.ndarray | None = None,
+) -> ParticleSet:
+    """A sample set placed by hand: ``X_k ~ N(mean_x, cov)`` (000 §5.2, AC §12.4).
+
+    Parameters
+    ----------
+    mean_x : ndarray of shape (Nx,)
+        Mean shape.
+    cov : ndarray of shape (Nx, Nx)
+        Symmetric positive semi-definite covariance (zero variances are allowed).
+    n : int
+        Number of samples.
+    rng : numpy.random.Generator
+        Source of randomness.
+    velocity : ndarray of shape (Nx,), optional
+        Known initial velocity per frame: ``X_{k-1} = X_k - velocity``.  By default the
+        samples start at rest, ``X_{k-1} = X_k``.
+
+    Returns
+    -------
+    ParticleSet
+        ``n`` equally weighted samples.
+    """
+    mean_x = np.asarray(mean_x, dtype=np.float64)
+    cov = np.asarray(cov, dtype=np.float64)
+    n = _check_count(n, "n")
+    if mean_x.ndim != 1 or cov.shape != (mean_x.size, mean_x.size):
+        raise DataError(f"init_gaussian: expected mean (Nx,) and cov (Nx, Nx), got {mean_x.shape} and {cov.shape}")
+    root = _psd_root(cov, "cov")
+    cur = mean_x + rng.standard_normal((n, mean_x.size)) @ root.T
+    if velocity is None:
+        prev = cur.copy()
+    else:
+        velocity = np.asarray(velocity, dtype=np.float64)
+        if velocity.shape != mean_x.shape:
+            raise DataError(f"velocity: expected shape {mean_x.shape}, got {velocity.shape}")
+        prev = cur - velocity
+    return ParticleSet(prev=prev, cur=cur, log_w=np.zeros(n))
+
+
+def _psd_root(cov: np.ndarray, name: str) -> np.ndarray:
+    """A matrix ``R`` with ``R R^T = cov`` for symmetric PSD ``cov``."""
+    if not np.isfinite(cov).all() or not np.allclose(cov, cov.T, rtol=1e-10, atol=1e-12 * max(1.0, np.abs(cov).max())):
+        raise DataError(f"{name}: expected a finite symmetric matrix")
+    vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
+    tol = 1e-10 * max(1.0, float(np.abs(vals).max()))
+    if vals.min() < -tol:
+        raise DataError(f"{name}: not positive semi-definite (smallest eigenvalue {vals.min():.3g})")
+    return vecs * np.sqrt(np.clip(vals, 0.0, None))
+
+
+def init_steady_state(
+    dynamics: Any,
+    n: int,
+    rng: np.random.Generator,
+    *,
+    n_burn: int | None = None,
+) -> ParticleSet:
+    """A sample set from the open-loop steady state of the motion model (000 §5.1, AC §12.4).
+
+    All samples start at rest at the mean ``X̄`` and the model is iterated ``n_burn`` times
+    with no measurements, which draws them from the stationary density of the AR(2)
+    process.
+
+    Parameters
+    ----------
+    dynamics
+        AR(2) model with ``A1``, ``A2`` (Nx, Nx), ``B0`` (Nx, Nw), ``mean`` (Nx,); it must be
+        stable (no steady state exists for, e.g., constant-velocity models, AC §10.1).
+    n : int
+        Number of samples.
+    rng : numpy.random.Generator
+        Source of randomness.
+    n_burn : int, optional
+        Number of iterations.  By default enough for the slowest mode to decay to 0.1 %
+        (``rho^n_burn <= 1e-3``, ``rho`` the spectral radius), at least 20 and at most
+        100 000.
+
+    Returns
+    -------
+    ParticleSet
+        ``n`` equally weighted samples.
+    """
+    a1, a2, _, mean = _dynamics_arrays(dynamics)
+    n = _check_count(n, "n")
+    rho = _spectral_radius(a1, a2)
+    if rho >= 1.0:
+        raise DataError(
+            f"dynamics: no steady state, the model is not stable (spectral radius {rho:.6g} >= 1); "
+            "initialise with init_gaussian instead"
+        )
+    if n_burn is None:
+        n_burn = 20 if rho == 0 else int(min(100_000, max(20, math.ceil(math.log(1e-3) / math.log(rho)))))
+    else:
+        n_burn = _check_count(n_burn, "n_burn")
+    prev = np.tile(mean, (n, 1))
+    cur = prev.copy()
+    for _ in range(n_burn):
+        prev, cur = cur, predict(prev, cur, dynamics, rng)
+    return ParticleSet(prev=prev, cur=cur, log_w=np.zeros(n))
+
+
+def sample_size_schedule(start: int = 1500, end: int = 500, frames: int = 4) -> Callable[[int], int]:
+    """Sample-set size per frame, falling linearly from ``start`` to ``end`` (000 §5.3).
+
+    Returns a function ``size(k)`` of the 0-based frame number: ``start`` at frame 0,
+    ``end`` from frame ``frames`` on, rounded linear interpolation in between (defaults:
+    1500, 1250, 1000, 750, 500, 500, ...).  A large first set sweeps out the prior well
+    enough to find the object; the smaller one tracks it cheaply.
+    """
+    start = _check_count(start, "start")
+    end = _check_count(end, "end")
+    if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or frames < 0:
+        raise ConfigError(f"frames: expected an integer >= 0, got {frames!r}")
+    frames = int(frames)
+
+    def size(k: int) -> int:
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
+            raise ConfigError(f"frame number: expected an integer >= 0, got {k!r}")
+        if k >= frames:
+            return end
+        return int(round(start + (end - start) * k / frames))
+
+    return size
