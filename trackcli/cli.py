@@ -602,6 +602,41 @@ def simulate_cmd(model_path, n_frames, n_paths, seed, output, size):
     click.echo(f"wrote {out} and {png} ({n_paths} paths of {n_frames} frames)")
 
 
+# ---------------------------------------------------------------------------------------------
+# eval
+
+
+@cli.command("eval")
+@click.argument("pred", type=click.Path(dir_okay=False))
+@click.argument("truth", type=click.Path())
+@click.option("--threshold", type=click.FloatRange(min=0, min_open=True), default=20.0, show_default=True,
+              help="Centre-error threshold (px) for precision.")
+@click.option("--lost-threshold", type=click.FloatRange(min=0, min_open=True),
+              help="Also count a frame lost when its centre error exceeds this (px).")
+@click.option("--object", "object_id", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Object id in a trackcli truth CSV with several objects.")
+@click.option("--json", "as_json", is_flag=True, help="Print the scores as one JSON object.")
+def eval_cmd(pred, truth, threshold, lost_threshold, object_id, as_json):
+    """Score estimates PRED (a track CSV) against ground truth TRUTH.
+
+    TRUTH is a trackcli truth CSV (sample_data/*.truth.csv), a benchmark box file (one
+    'x,y,w,h' line per frame, comma or whitespace separated), or a folder holding
+    groundtruth_rect.txt / groundtruth.txt.
+
+    \b
+    Metrics: centre error (mean, median, max, px), precision at --threshold, success AUC
+    (mean success rate over IoU thresholds 0, 0.05, ..., 1), mean IoU, frames lost.
+    """
+    from .evaluate import evaluate, format_table, load_truth
+
+    result = evaluate(pred, load_truth(truth, object_id=object_id), threshold=threshold,
+                      lost_threshold=lost_threshold)
+    if as_json:
+        _echo_json(_clean_json(result.to_dict()))
+    else:
+        click.echo(format_table(result))
+
+
 def main() -> None:
     cli(prog_name="trackcli")
 

@@ -14,12 +14,15 @@ squares (:func:`trackcli.spline.fit`).
 
 from __future__ import annotations
 
+import logging
 import re
 from pathlib import Path
 
 import numpy as np
 
 from .errors import DataError, InputError
+
+log = logging.getLogger(__name__)
 
 # ---------------------------------------------------------------------------------------------
 # Parsing user input
@@ -144,8 +147,15 @@ def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *
     fg = cv2.morphologyEx(fg, cv2.MORPH_OPEN, kernel)
     fg = cv2.morphologyEx(fg, cv2.MORPH_CLOSE, kernel)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(fg, connectivity=8)
-    if n <= 1:
-        raise DataError(f"--box {x:g},{y:g},{w:g},{h:g}: segmentation found no object in the box")
+    if n <= 1 or stats[1:, cv2.CC_STAT_AREA].max() < 0.15 * rect[2] * rect[3]:
+        # GrabCut finds nothing convincing (small or low-contrast objects): the ellipse
+        # inscribed in the box is the honest fallback, and the user is told.
+        log.warning("--box %g,%g,%g,%g: automatic segmentation found no clear object; "
+                    "using the ellipse inscribed in the box", x, y, w, h)
+        fallback = np.zeros((h_img, w_img), np.uint8)
+        box_rr = (((x0 + x1) / 2.0, (y0 + y1) / 2.0), (float(x1 - x0), float(y1 - y0)), 0.0)
+        cv2.ellipse(fallback, box_rr, 255, -1)
+        return fallback
     largest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
     fg = np.where(labels == largest, 255, 0).astype(np.uint8)
     # fill holes: everything not reachable from the border as background is object
