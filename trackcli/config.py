@@ -229,11 +229,13 @@ def _merge(base: dict, overrides: Mapping[str, Any]) -> dict:
             continue
         keys = dotted.split(".")
         node = out
-        for k in keys[:-1]:
-            nxt = node.get(k)
+        for i, k in enumerate(keys[:-1]):
+            if k not in node:
+                node[k] = {}
+            nxt = node[k]
             if not isinstance(nxt, dict):
-                nxt = {} if nxt is None else nxt
-                node[k] = nxt
+                where = ".".join(keys[: i + 1])
+                raise ConfigError(f"{where}: expected a mapping of settings, got {nxt!r}")
             node = nxt
         node[keys[-1]] = value
     return out
@@ -271,9 +273,8 @@ def load_settings(path: str | Path | None = None, overrides: Mapping[str, Any] |
     data: dict[str, Any] = {}
     if path is not None:
         data = read_yaml(path)
-    data = _merge(_deep_copy(data), overrides or {})
     try:
-        return _build(Settings, data, "")
+        return _build(Settings, _merge(_deep_copy(data), overrides or {}), "")
     except ConfigError as exc:
         if path is not None:
             raise ConfigError(f"{path}: {exc}") from None
