@@ -1,0 +1,57 @@
+"""Shared fixtures: the repository root, the sample clips, and a small synthetic clip."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+SAMPLE_DATA = REPO / "sample_data"
+CONFIGS = REPO / "configs"
+
+# The small synthetic clip: a dark ellipse drifting right over a light, noisy background.
+CLIP_SIZE = (160, 120)  # (width, height)
+CLIP_FRAMES = 6
+CLIP_ELLIPSE = (70.0, 60.0, 28.0, 36.0)  # cx, cy, semi-axis along x, semi-axis along y in frame 0
+CLIP_DRIFT = 2.0  # px per frame along x
+
+
+def sample_clip(name: str) -> Path:
+    """The sample video ``name`` (``train``, ``test``, ...) or skip the test if it is absent."""
+    for ext in (".mp4", ".avi"):
+        p = SAMPLE_DATA / f"{name}{ext}"
+        if p.is_file():
+            truth = SAMPLE_DATA / f"{name}.truth.csv"
+            outline = SAMPLE_DATA / f"{name}.outline.json"
+            if truth.is_file() and outline.is_file():
+                return p
+    pytest.skip(f"sample_data/{name} (video, truth and outline) not generated yet")
+
+
+def ellipse_frame(rng: np.random.Generator, k: int = 0) -> np.ndarray:
+    """Frame ``k`` of the synthetic clip: ``(120, 160, 3)`` uint8 BGR."""
+    import cv2
+
+    w, h = CLIP_SIZE
+    img = np.full((h, w, 3), 200.0) + rng.normal(0.0, 6.0, (h, w, 3))
+    img = np.clip(img, 0, 255).astype(np.uint8)
+    cx, cy, a, b = CLIP_ELLIPSE
+    cv2.ellipse(img, ((cx + CLIP_DRIFT * k, cy), (2 * a, 2 * b), 0.0), (40, 40, 40), -1, cv2.LINE_AA)
+    return img
+
+
+@pytest.fixture(scope="session")
+def ellipse_clip(tmp_path_factory) -> Path:
+    """A 6-frame 160x120 Motion-JPEG .avi of a dark ellipse drifting over a noisy background."""
+    import cv2
+
+    path = tmp_path_factory.mktemp("clip") / "ellipse.avi"
+    rng = np.random.default_rng(11)
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, CLIP_SIZE)
+    assert writer.isOpened(), "OpenCV cannot write MJPG .avi here"
+    for k in range(CLIP_FRAMES):
+        writer.write(ellipse_frame(rng, k))
+    writer.release()
+    return path
