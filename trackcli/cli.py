@@ -167,9 +167,7 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, n_ctrl, degree, open
     with atomic_path(png) as tmp:
         tmp.write_bytes(buf.tobytes())
     if rrd:
-        from .recording import record_template
-
-        record_template(rrd, frame.image, template, n_normals=n_normals)
+        draw.record_template(rrd, frame.image, template, n_normals=n_normals)
     log.info("template %s (%d control points) from %s", out, n_ctrl, source)
     click.echo(f"wrote {out} and {png}" + (f" and {rrd}" if rrd else ""))
 

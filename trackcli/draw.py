@@ -238,3 +238,24 @@ def render_preview(image_bgr: np.ndarray, template, *, n_normals: int = 24, half
     for p in pts:
         cv2.circle(vis, tuple(ipts(p)[0, 0]), 2 * 16 * scale, (0, 0, 255), -1, cv2.LINE_AA, shift=4)
     return vis
+
+
+def record_template(path, image_bgr: np.ndarray, template, *, n_normals: int = 24, half_width: float = 15.0):
+    """Recording of a template over its frame: curve, control polygon, measurement normals."""
+    from .recording import Recording
+    from .spline import dense_polygon
+
+    basis = template.basis()
+    sampler = basis.sampler(basis.measurement_params(n_normals))
+    pts, nrm = sampler.points_normals(template.Q)
+    with Recording(path, blueprint="draw") as rec:
+        rec.set_frame(template.frame, 0.0)
+        rec.log_frame(image_bgr)
+        rec.log_segments("video/normals", pts - half_width * nrm, pts + half_width * nrm, color=(255, 220, 0))
+        rec.log_contour("video/control_polygon", template.control_points, color=(0, 120, 255), width=1.0,
+                        closed=template.closed)
+        rec.log_points("video/control_points", template.control_points, colors=(0, 120, 255), radii=3.0)
+        rec.log_contour("video/template", dense_polygon(template.Q, basis), color=(0, 255, 0), width=2.0,
+                        closed=template.closed)
+        rec.log_params("params", template.to_dict())
+    return path
