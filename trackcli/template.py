@@ -124,14 +124,14 @@ class Template:
             raise TemplateError(f"{where}: control_points must be a list of [x, y] number pairs") from None
         size = d.get("frame_size")
         if size is not None:
-            if not (isinstance(size, (list, tuple)) and len(size) == 2 and all(isinstance(v, int) and v > 0 for v in size)):
+            if not (isinstance(size, (list, tuple)) and len(size) == 2 and all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in size)):
                 raise TemplateError(f"{where}: frame_size must be [width, height] in pixels, got {size!r}")
             size = (int(size[0]), int(size[1]))
         frame = d.get("frame", 0)
-        if not isinstance(frame, int) or frame < 0:
+        if not isinstance(frame, int) or isinstance(frame, bool) or frame < 0:
             raise TemplateError(f"{where}: frame must be an integer >= 0, got {frame!r}")
         degree = d.get("degree", 2)
-        if not isinstance(degree, int):
+        if not isinstance(degree, int) or isinstance(degree, bool):
             raise TemplateError(f"{where}: degree must be an integer, got {degree!r}")
         closed = d.get("closed", True)
         if not isinstance(closed, bool):
