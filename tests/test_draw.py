@@ -1,0 +1,337 @@
+"""Tests for trackcli.draw: parsing user input, outlines, GrabCut boxes, masks, template fitting."""
+
+from __future__ import annotations
+
+import logging
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from conftest import CLIP_ELLIPSE, CLIP_SIZE, SAMPLE_DATA, sample_clip
+from trackcli import draw
+from trackcli.cli import cli
+from trackcli.errors import DataError, InputError
+from trackcli.spline import dense_polygon
+from trackcli.template import load_template
+
+
+def template_mask(template, frame_size) -> np.ndarray:
+    """The region enclosed by a template's curve, rasterised."""
+    return draw.polygon_mask(dense_polygon(template.Q, template.basis(), 400), frame_size)
+
+
+def grown_box(points: np.ndarray, margin: float = 0.1) -> tuple[float, float, float, float]:
+    """The tight box of ``points`` grown by ``margin`` of its size on each side."""
+    x0, y0 = points.min(axis=0)
+    x1, y1 = points.max(axis=0)
+    gx, gy = margin * (x1 - x0), margin * (y1 - y0)
+    return (x0 - gx, y0 - gy, x1 - x0 + 2 * gx, y1 - y0 + 2 * gy)
+
+
+# ---------------------------------------------------------------------------------------------
+# parse_points / parse_numbers
+
+
+@pytest.mark.parametrize(
+    "spec",
+    ["10,20 30,40 50,65", "10,20,30,40,50,65", " 10, 20  30 ,40\t50,65 ", "1e1,2e1 30,40 50,6.5e1"],
+    ids=["pairs", "flat", "spaces", "exponents"],
+)
+def test_parse_points_pairs(spec):
+    pts = draw.parse_points(spec)
+    np.testing.assert_array_equal(pts, [[10, 20], [30, 40], [50, 65]])
+    assert pts.dtype == float and pts.shape == (3, 2)
+
+
+def test_parse_points_negative_and_fractional():
+    np.testing.assert_array_equal(draw.parse_points("-1.5,2 3,-4.25 +5,6"), [[-1.5, 2], [3, -4.25], [5, 6]])
+
+
+def test_parse_points_file_with_comments_and_blank_lines(tmp_path):
+    p = tmp_path / "outline.txt"
+    p.write_text("# head outline, x,y per line\n\n10,20\n  30 40  \n# a comment mid-file\n50,65\n\n", encoding="utf-8")
+    np.testing.assert_array_equal(draw.parse_points(str(p)), [[10, 20], [30, 40], [50, 65]])
+
+
+def test_parse_points_file_garbage_line_is_named(tmp_path):
+    p = tmp_path / "outline.txt"
+    p.write_text("10,20\n30,40\nfifty,65\n", encoding="utf-8")
+    with pytest.raises(InputError, match=r"outline\.txt line 3: expected comma-separated numbers, got 'fifty,65'"):
+        draw.parse_points(str(p))
+
+
+def test_parse_points_file_line_with_three_numbers(tmp_path):
+    p = tmp_path / "outline.txt"
+    p.write_text("10,20\n30,40,7\n50,65\n", encoding="utf-8")
+    with pytest.raises(InputError, match=r"line 2: expected 2 numbers, got 3"):
+        draw.parse_points(str(p))
+
+
+def test_parse_points_file_with_too_few_points(tmp_path):
+    p = tmp_path / "two.txt"
+    p.write_text("# only two\n1,2\n3,4\n", encoding="utf-8")
+    with pytest.raises(InputError, match="need at least 3 points, got 2"):
+        draw.parse_points(str(p))
+
+
+@pytest.mark.parametrize("spec", ["10,20 30,40 50", "1,2,3", "1 2 3 4 5 6 7"])
+def test_parse_points_odd_count(spec):
+    with pytest.raises(InputError, match=r"--points: expected x,y pairs, got an odd count"):
+        draw.parse_points(spec)
+
+
+@pytest.mark.parametrize("spec", ["10,20 30,40", "10,20"])
+def test_parse_points_too_few(spec):
+    with pytest.raises(InputError, match="need at least 3 points"):
+        draw.parse_points(spec)
+
+
+@pytest.mark.parametrize("spec", ["head.txt", "ten,twenty thirty,forty 1,2", "a;b;c"])
+def test_parse_points_garbage_that_is_not_a_file(tmp_path, monkeypatch, spec):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(InputError, match="neither x,y pairs nor an existing points file"):
+        draw.parse_points(spec)
+
+
+@pytest.mark.parametrize("spec", ["1,2 3,4 5,--6", "1,2 3,4 5,6e", "1..2,3 4,5 6,7"])
+def test_parse_points_malformed_numbers(spec):
+    with pytest.raises(InputError, match="expected comma-separated numbers"):
+        draw.parse_points(spec)
+
+
+def test_parse_points_non_finite():
+    with pytest.raises(InputError, match="must be finite"):
+        draw.parse_points("1e999,2 3,4 5,6")
+
+
+def test_parse_numbers_counts():
+    assert draw.parse_numbers("1,2,3,4", 4, "--box") == [1.0, 2.0, 3.0, 4.0]
+    assert draw.parse_numbers("1 2 3 4 30", (4, 5), "--ellipse") == [1.0, 2.0, 3.0, 4.0, 30.0]
+    with pytest.raises(InputError, match=r"^--box: expected 4 numbers, got 3 in '1,2,3'$"):
+        draw.parse_numbers("1,2,3", 4, "--box")
+    with pytest.raises(InputError, match=r"^--ellipse: expected 4 to 5 numbers, got 6"):
+        draw.parse_numbers("1,2,3,4,5,6", (4, 5), "--ellipse")
+    with pytest.raises(InputError, match=r"^--box: expected comma-separated numbers, got 'x,y,w,h'$"):
+        draw.parse_numbers("x,y,w,h", 4, "--box")
+
+
+# ---------------------------------------------------------------------------------------------
+# Ellipse outlines
+
+
+@pytest.mark.parametrize("angle", [0.0, 30.0, 90.0, -115.0])
+def test_ellipse_outline_lies_on_the_ellipse(angle):
+    cx, cy, a, b = 100.0, 80.0, 40.0, 15.0
+    pts = draw.ellipse_outline(cx, cy, a, b, angle, n=360)
+    assert pts.shape == (360, 2)
+    th = np.radians(angle)
+    d = pts - [cx, cy]
+    u = d[:, 0] * np.cos(th) + d[:, 1] * np.sin(th)  # back into the ellipse's own axes
+    v = -d[:, 0] * np.sin(th) + d[:, 1] * np.cos(th)
+    np.testing.assert_allclose((u / a) ** 2 + (v / b) ** 2, 1.0, atol=1e-12)
+    np.testing.assert_allclose(pts.mean(axis=0), [cx, cy], atol=1e-9)
+    x, y = pts[:, 0], pts[:, 1]
+    area = 0.5 * abs(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+    assert area == pytest.approx(np.pi * a * b, rel=1e-3)
+
+
+def test_ellipse_angle_turns_clockwise_on_screen():
+    # The first point is the end of the a-axis; with y down, +30 degrees moves it down-right.
+    p0 = draw.ellipse_outline(0.0, 0.0, 10.0, 4.0, 30.0)[0]
+    np.testing.assert_allclose(p0, [10 * np.cos(np.pi / 6), 10 * np.sin(np.pi / 6)], atol=1e-12)
+    # a quarter turn swaps the extents
+    pts = draw.ellipse_outline(50.0, 40.0, 30.0, 10.0, 90.0, n=400)
+    np.testing.assert_allclose(np.ptp(pts, axis=0), [20.0, 60.0], atol=1e-3)
+
+
+@pytest.mark.parametrize(("a", "b"), [(0.0, 5.0), (5.0, -1.0)])
+def test_ellipse_outline_rejects_non_positive_axes(a, b):
+    with pytest.raises(InputError, match="semi-axes must be positive"):
+        draw.ellipse_outline(10.0, 10.0, a, b)
+
+
+# ---------------------------------------------------------------------------------------------
+# Masks, IoU
+
+
+def test_mask_iou_values():
+    a = np.zeros((10, 10), np.uint8)
+    b = np.zeros((10, 10), np.uint8)
+    a[:, :6] = 255
+    b[:, 3:9] = 1  # any non-zero value is object
+    assert draw.mask_iou(a, b) == pytest.approx(30 / 90)
+    assert draw.mask_iou(a, a) == 1.0
+    assert draw.mask_iou(a, 255 - a) == 0.0
+    assert draw.mask_iou(np.zeros((4, 4)), np.zeros((4, 4))) == 0.0
+
+
+def test_polygon_mask_of_a_rectangle():
+    m = draw.polygon_mask(np.array([[10.0, 20.0], [40.0, 20.0], [40.0, 30.0], [10.0, 30.0]]), (64, 48))
+    assert m.shape == (48, 64) and m.dtype == np.uint8
+    ys, xs = np.nonzero(m)
+    assert (xs.min(), xs.max(), ys.min(), ys.max()) == (10, 40, 20, 30)  # (x, y) -> (row, col)
+    assert m.sum() // 255 == 31 * 11
+
+
+def test_mask_outline_traces_the_largest_region():
+    m = np.zeros((100, 120), np.uint8)
+    cv2.circle(m, (30, 30), 8, 255, -1)
+    big = draw.ellipse_outline(80.0, 60.0, 25.0, 18.0, 20.0)
+    m = np.maximum(m, draw.polygon_mask(big, (120, 100)))
+    out = draw.mask_outline(m)
+    assert out.ndim == 2 and out.shape[1] == 2
+    assert draw.mask_iou(draw.polygon_mask(out, (120, 100)), draw.polygon_mask(big, (120, 100))) > 0.95
+    assert out[:, 0].min() > 50  # not the small circle
+
+
+def test_mask_outline_rejects_empty_and_tiny_masks():
+    with pytest.raises(DataError, match="no object"):
+        draw.mask_outline(np.zeros((20, 20), np.uint8))
+    m = np.zeros((20, 20), np.uint8)
+    m[5:7, 5:7] = 1
+    with pytest.raises(DataError, match="too small"):
+        draw.mask_outline(m)
+    with pytest.raises(InputError, match="2-D"):
+        draw.mask_outline(np.ones((4, 4, 3), np.uint8))
+
+
+def test_mask_route_recovers_the_region(tmp_path):
+    size = (200, 150)
+    truth_outline = draw.ellipse_outline(95.0, 70.0, 45.0, 30.0, -20.0)
+    truth = draw.polygon_mask(truth_outline, size)
+    p = tmp_path / "mask.png"
+    cv2.imwrite(str(p), truth)
+    m = draw.load_mask(p, size)
+    t = draw.fit_template(draw.mask_outline(m), 12, frame_size=size, source="mask")
+    assert t.n_ctrl == 12 and t.frame_size == size
+    assert draw.mask_iou(template_mask(t, size), truth) >= 0.95
+
+
+def test_load_mask_errors(tmp_path):
+    with pytest.raises(InputError, match="no such mask file"):
+        draw.load_mask(tmp_path / "absent.png")
+    bad = tmp_path / "not-an-image.png"
+    bad.write_text("hello", encoding="utf-8")
+    with pytest.raises(InputError, match="not an image"):
+        draw.load_mask(bad)
+    p = tmp_path / "small.png"
+    cv2.imwrite(str(p), np.zeros((10, 12), np.uint8))
+    with pytest.raises(InputError, match=r"mask is 12x10 but the frame is 160x120"):
+        draw.load_mask(p, (160, 120))
+
+
+# ---------------------------------------------------------------------------------------------
+# GrabCut boxes
+
+
+def dark_ellipse_image(rng: np.random.Generator):
+    """A dark rotated ellipse on a light, noisy, shaded background; returns (image, true outline)."""
+    w, h = 240, 200
+    img = np.full((h, w, 3), 190.0) + np.linspace(-20, 20, w)[None, :, None] + rng.normal(0, 8, (h, w, 3))
+    outline = draw.ellipse_outline(118.3, 96.7, 50.0, 30.0, 25.0)
+    inside = draw.polygon_mask(outline, (w, h)) > 0
+    img[inside] = np.array([60.0, 50.0, 45.0]) + rng.normal(0, 8, (int(inside.sum()), 3))
+    img = cv2.GaussianBlur(np.clip(img, 0, 255).astype(np.uint8), (3, 3), 0.8)
+    return img, outline
+
+
+def test_box_segmentation_and_fit_recover_the_ellipse():
+    img, outline = dark_ellipse_image(np.random.default_rng(5))
+    size = (img.shape[1], img.shape[0])
+    truth = draw.polygon_mask(outline, size)
+    mask = draw.segment_box(img, grown_box(outline))
+    assert mask.shape == img.shape[:2] and mask.dtype == np.uint8
+    assert draw.mask_iou(mask, truth) >= 0.95
+    t = draw.fit_template(draw.mask_outline(mask), 12, frame_size=size)
+    assert draw.mask_iou(template_mask(t, size), truth) >= 0.9
+
+
+def test_box_segmentation_is_reproducible():
+    img, outline = dark_ellipse_image(np.random.default_rng(6))
+    box = grown_box(outline, 0.15)
+    np.testing.assert_array_equal(draw.segment_box(img, box), draw.segment_box(img, box))
+
+
+def test_box_without_an_object_falls_back_to_the_inscribed_ellipse(caplog):
+    img = np.full((120, 160, 3), 128, np.uint8)
+    with caplog.at_level(logging.WARNING, logger="trackcli.draw"):
+        mask = draw.segment_box(img, (40.0, 30.0, 60.0, 50.0))
+    assert "no clear object" in caplog.text
+    inscribed = draw.polygon_mask(draw.ellipse_outline(70.0, 55.0, 30.0, 25.0), (160, 120))
+    assert draw.mask_iou(mask, inscribed) >= 0.95
+
+
+@pytest.mark.parametrize(
+    ("box", "text"),
+    [((10.0, 10.0, 0.0, 20.0), "width and height must be positive"),
+     ((10.0, 10.0, 20.0, -5.0), "width and height must be positive"),
+     ((500.0, 10.0, 40.0, 40.0), "outside the 160x120 frame"),
+     ((-100.0, -100.0, 103.0, 103.0), "outside the 160x120 frame")],
+)
+def test_box_errors(box, text):
+    with pytest.raises(InputError, match=text):
+        draw.segment_box(np.full((120, 160, 3), 128, np.uint8), box)
+
+
+# ---------------------------------------------------------------------------------------------
+# fit_template and the preview
+
+
+def test_fit_template_on_few_points_resamples_the_polygon():
+    square = np.array([[20.0, 20.0], [80.0, 20.0], [80.0, 80.0], [20.0, 80.0]])
+    t = draw.fit_template(square, 12, clip="c.mp4", frame=4, frame_size=(100, 100), source="points")
+    assert t.control_points.shape == (12, 2)
+    assert (t.clip, t.frame, t.frame_size, t.source, t.degree, t.closed) == ("c.mp4", 4, (100, 100), "points", 2, True)
+    assert draw.mask_iou(template_mask(t, (100, 100)), draw.polygon_mask(square, (100, 100))) >= 0.9
+
+
+def test_fit_template_of_an_ellipse_is_close():
+    outline = draw.ellipse_outline(*CLIP_ELLIPSE)
+    t = draw.fit_template(outline, 10)
+    curve = dense_polygon(t.Q, t.basis(), 500)
+    cx, cy, a, b = CLIP_ELLIPSE
+    r = np.hypot((curve[:, 0] - cx) / a, (curve[:, 1] - cy) / b)
+    np.testing.assert_allclose(r, 1.0, atol=0.01)
+
+
+def test_render_preview_draws_on_a_copy():
+    rng = np.random.default_rng(2)
+    img = np.clip(rng.normal(128, 5, (120, 160, 3)), 0, 255).astype(np.uint8)
+    before = img.copy()
+    t = draw.fit_template(draw.ellipse_outline(*CLIP_ELLIPSE), 12, frame_size=CLIP_SIZE)
+    vis = draw.render_preview(img, t, n_normals=16)
+    np.testing.assert_array_equal(img, before)
+    assert vis.shape == img.shape and vis.dtype == np.uint8
+    green = (vis[..., 1] > 200) & (vis[..., 0] < 80) & (vis[..., 2] < 80)
+    # the green curve runs along the template: most of its pixels lie within 2 px of the curve
+    curve = draw.polygon_mask(dense_polygon(t.Q, t.basis(), 400), CLIP_SIZE)
+    ring = cv2.dilate(curve, np.ones((5, 5), np.uint8)) - cv2.erode(curve, np.ones((5, 5), np.uint8))
+    assert green.sum() > 100
+    assert (green & (ring > 0)).sum() / green.sum() > 0.8
+
+
+# ---------------------------------------------------------------------------------------------
+# The acceptance test on the sample clip
+
+
+def test_draw_box_on_train_clip_matches_the_true_outline(tmp_path):
+    from trackcli.sample_data import load_outline, load_truth, true_outline
+
+    video = sample_clip("train")
+    truth = load_truth(SAMPLE_DATA / "train.truth.csv").select(0)
+    base = load_outline(SAMPLE_DATA / "train.outline.json")
+    i0 = int(np.flatnonzero(truth.frame == 0)[0])
+    row = truth.row(i0)
+    x, y, w, h = row["bbox_x"], row["bbox_y"], row["bbox_w"], row["bbox_h"]
+    box = f"{x - 0.1 * w:.1f},{y - 0.1 * h:.1f},{1.2 * w:.1f},{1.2 * h:.1f}"
+    out = tmp_path / "head.yaml"
+    result = CliRunner().invoke(cli, ["draw", str(video), "--box", box, "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    t = load_template(out)
+    size = (base.width, base.height)
+    assert t.frame_size == size and t.frame == 0
+    true_region = draw.polygon_mask(true_outline(row, base), size)
+    iou = draw.mask_iou(template_mask(t, size), true_region)
+    assert iou >= 0.9, f"IoU {iou:.3f}"
