@@ -225,7 +225,10 @@ def test_predict_matches_the_ar2_equation():
     rng = np.random.default_rng(42)
     nx = 3
     dyn = SimpleNamespace(
-        A1=rng.normal(size=(nx, nx)) * 0.3, A2=rng.normal(size=(nx, nx)) * 0.2, B0=rng.normal(size=(nx, 2)), mean=rng.normal(size=nx)
+        A1=rng.normal(size=(nx, nx)) * 0.3,
+        A2=rng.normal(size=(nx, nx)) * 0.2,
+        B0=rng.normal(size=(nx, 2)),
+        mean=rng.normal(size=nx),
     )
     prev, cur = rng.normal(size=(5, nx)), rng.normal(size=(5, nx))
     got = cond.predict(prev, cur, dyn, np.random.default_rng(7))
@@ -297,3 +300,19 @@ def test_particle_set_validates_shapes():
     with pytest.raises(DataError, match="loglik"):
         cond.step(cond.init_gaussian(np.zeros(1), np.eye(1), 5, np.random.default_rng(46)), ar2(), lambda x: np.zeros(3),
                   np.random.default_rng(47))
+
+
+def test_step_evaluates_loglik_in_blocks_and_reassembles_them():
+    rng = np.random.default_rng(48)
+    n = 2 * cond.LOGLIK_BLOCK + 17
+    start = cond.init_gaussian(np.zeros(2), np.eye(2), n, rng)
+    sizes = []
+
+    def loglik(x):
+        sizes.append(len(x))
+        return -0.5 * np.sum((x - [0.5, -0.3]) ** 2, axis=1)
+
+    out, _ = cond.step(start, SimpleNamespace(A1=np.eye(2), A2=np.zeros((2, 2)), B0=np.eye(2), mean=np.zeros(2)), loglik, rng)
+    assert sizes == [cond.LOGLIK_BLOCK, cond.LOGLIK_BLOCK, 17]
+    expected, _ = cond.normalise_log_weights(loglik(out.cur))
+    np.testing.assert_allclose(out.weights, expected, rtol=1e-12)

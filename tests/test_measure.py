@@ -153,7 +153,9 @@ def test_sampling_handles_more_rows_than_the_remap_limit():
     nrm = np.tile([0.6, 0.8], (k, 1))
     u = np.arange(-3.0, 4.0)
     whole = measure.sample_along_normals(img, pts, nrm, u)
-    pieces = np.concatenate([measure.sample_along_normals(img, pts[i : i + 1000], nrm[i : i + 1000], u) for i in range(0, k, 1000)])
+    pieces = np.concatenate(
+        [measure.sample_along_normals(img, pts[i : i + 1000], nrm[i : i + 1000], u) for i in range(0, k, 1000)]
+    )
     np.testing.assert_array_equal(whole, pieces)
 
 
@@ -378,7 +380,8 @@ def test_log_likelihood_is_largest_at_the_true_curve():
     rng = np.random.default_rng(5)
     for _ in range(40):  # clutter away from the object
         x, y = int(rng.integers(0, 300)), int(rng.choice([rng.integers(0, 50), rng.integers(190, 240)]))
-        cv2.rectangle(frame, (x, y), (x + int(rng.integers(5, 30)), y + int(rng.integers(5, 30))), [float(rng.integers(0, 255))] * 3, -1)
+        corner = (x + int(rng.integers(5, 30)), y + int(rng.integers(5, 30)))
+        cv2.rectangle(frame, (x, y), corner, [float(rng.integers(0, 255))] * 3, -1)
     frame += rng.normal(0, 3, frame.shape)
     fimg = measure.feature_image(frame)
     shifts = np.array([(dx, dy) for dx in range(-8, 9, 2) for dy in range(-8, 9, 2)], dtype=float)

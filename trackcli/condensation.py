@@ -49,6 +49,9 @@ __all__ = [
 ]
 
 
+#: Largest number of samples handed to ``loglik`` at once by :func:`step`.
+LOGLIK_BLOCK = 2048
+
 # ---------------------------------------------------------------------------------------------
 # Weights
 
@@ -320,8 +323,11 @@ def predict(prev: np.ndarray, cur: np.ndarray, dynamics: Any, rng: np.random.Gen
     a1, a2, b0, mean = _dynamics_arrays(dynamics, cur.shape[-1] if cur.ndim == 2 else None)
     if cur.ndim != 2 or prev.shape != cur.shape:
         raise DataError(f"prev and cur: expected equal shapes (N, Nx), got {prev.shape} and {cur.shape}")
-    noise = rng.standard_normal((cur.shape[0], b0.shape[1]))
-    return mean + (prev - mean) @ a2.T + (cur - mean) @ a1.T + noise @ b0.T
+    out = rng.standard_normal((cur.shape[0], b0.shape[1])) @ b0.T
+    out += cur @ a1.T
+    out += prev @ a2.T
+    out += mean - (a1 + a2) @ mean  # few temporaries: this runs on every sample every frame
+    return out
 
 
 def _spectral_radius(a1: np.ndarray, a2: np.ndarray) -> float:
@@ -357,8 +363,10 @@ def step(
     dynamics
         AR(2) model with ``A1``, ``A2`` (Nx, Nx), ``B0`` (Nx, Nw), ``mean`` (Nx,).
     loglik : callable
-        ``loglik(X)`` with ``X`` of shape (n_out, Nx) returns the log observation density
-        ``log p(Z_k | X)`` of shape (n_out,); ``-inf`` marks an impossible sample.
+        ``loglik(X)`` with ``X`` of shape (n, Nx) returns the log observation density
+        ``log p(Z_k | X)`` of shape (n,); ``-inf`` marks an impossible sample.  It is called
+        on consecutive blocks of at most :data:`LOGLIK_BLOCK` samples, so that the curves
+        of a block and their measurement stay in the processor's cache.
     rng : numpy.random.Generator
         Source of randomness for selection and process noise.
     n_out : int, optional
@@ -398,9 +406,13 @@ def step(
         prev, cur, base = particles.prev, particles.cur, log_w
 
     new = predict(prev, cur, dynamics, rng)
-    ll = np.asarray(loglik(new), dtype=np.float64)
-    if ll.shape != (n_out,):
-        raise DataError(f"loglik: expected an array of shape ({n_out},), got {ll.shape}")
+    ll = np.empty(n_out)
+    for b0 in range(0, n_out, LOGLIK_BLOCK):
+        block = new[b0 : b0 + LOGLIK_BLOCK]
+        part = np.asarray(loglik(block), dtype=np.float64)
+        if part.shape != (block.shape[0],):
+            raise DataError(f"loglik: expected an array of shape ({block.shape[0]},), got {part.shape}")
+        ll[b0 : b0 + block.shape[0]] = part
     if (ll == np.inf).any():
         raise DataError("loglik: returned +inf; a log-likelihood must be finite or -inf")
     out_log_w, degenerate = _log_normalise(base + ll)

@@ -24,10 +24,10 @@ A *feature* is a local maximum of the polarity-selected response ``S`` (``|D|`` 
 ``polarity="any"``, ``-D`` for ``"light_to_dark"``, ``D`` for ``"dark_to_light"``) with
 ``S >= threshold``; its sub-pixel offset ``nu`` comes from the parabola through the maximum
 and its two neighbours (exact on a blurred step for axis-aligned normals, within about
-0.1 px on diagonals, where bilinear interpolation is not shift-invariant).  Polarity is relative to the direction of the normals passed in:
-with outward normals, ``"light_to_dark"`` accepts a light object on a darker background
-(AC §10.4, the hand on a dark desk).  A feature belongs to the search segment of its normal
-when ``|nu| <= h``.
+0.1 px on diagonals, where bilinear interpolation is not shift-invariant).  Polarity is
+relative to the direction of the normals passed in: with outward normals,
+``"light_to_dark"`` accepts a light object on a darker background (AC §10.4, the hand on a
+dark desk).  A feature belongs to the search segment of its normal when ``|nu| <= h``.
 
 Two consumers share this one definition of a feature:
 
@@ -57,6 +57,7 @@ slower than this, as OpenCV's sampling is vectorised and a scalar gather is not.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -83,7 +84,7 @@ POLARITIES = ("any", "light_to_dark", "dark_to_light")
 
 #: ``cv2.remap`` requires every side of a map to be below SHRT_MAX = 32767.
 REMAP_MAX_SIDE = 32766
-#: Largest search half-width accepted, in pixels (a profile is ``2 H + 2`` samples long).
+#: Largest search half-width accepted, in pixels (a profile is ``2 H + 4`` samples long).
 MAX_HALF_WIDTH = 4000
 # Normals processed per chunk by the vectorised scanner: keeps the working arrays in cache.
 _CHUNK_NORMALS = 2048
@@ -194,19 +195,23 @@ def _as_image(fimg: np.ndarray) -> np.ndarray:
 
 
 def _as_normals(points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[int, ...]]:
-    """Flatten ``points`` and ``normals`` of shape (..., 2) to float32 (K, 2)."""
-    p = np.asarray(points, dtype=np.float32)
-    n = np.asarray(normals, dtype=np.float32)
+    """Flatten ``points`` and ``normals`` of shape (..., 2) to (K, 2) float arrays.
+
+    Float32 and float64 inputs are kept as they are (no copy when contiguous); the scanner
+    converts and checks them chunk by chunk, where the data are in cache.
+    """
+    p = np.asarray(points)
+    n = np.asarray(normals)
+    if p.dtype not in (np.float32, np.float64):
+        p = p.astype(np.float64)
+    if n.dtype not in (np.float32, np.float64):
+        n = n.astype(np.float64)
     if p.ndim < 1 or p.shape[-1] != 2:
         raise DataError(f"points: expected shape (..., 2), got {p.shape}")
     if n.shape != p.shape:
         raise DataError(f"normals: expected the shape of points {p.shape}, got {n.shape}")
     lead = p.shape[:-1]
-    p = p.reshape(-1, 2)
-    n = n.reshape(-1, 2)
-    if not (np.isfinite(p).all() and np.isfinite(n).all()):
-        raise DataError("points and normals must be finite; got NaN or infinite coordinates")
-    return p, n, lead
+    return p.reshape(-1, 2), n.reshape(-1, 2), lead
 
 
 def _as_half_widths(h: float | np.ndarray, lead: tuple[int, ...], name: str) -> np.ndarray:
@@ -252,6 +257,8 @@ def _remap_rows(img: np.ndarray, pts: np.ndarray, nrm: np.ndarray, offsets: np.n
     coeff[:k, 1] = pts[:, 0]
     coeff[k:, 0] = nrm[:, 1]
     coeff[k:, 1] = pts[:, 1]
+    if not np.isfinite(coeff).all():
+        raise DataError("points and normals must be finite (and within float32 range); got NaN or infinite coordinates")
     basis = np.stack([offsets, np.ones_like(offsets)]).astype(np.float32)
     maps = coeff @ basis
     return cv2.remap(img, maps[:k], maps[k:], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
@@ -274,7 +281,8 @@ def sample_along_normals(
     Returns
     -------
     ndarray of shape (..., L), float32
-        ``fimg`` at ``points + u * normals``, border pixels replicated outside the image.
+        ``fimg`` at ``points + u * normals``, border pixels replicated outside the image
+        (positions beyond about ``2**26`` px give undefined values, as in ``cv2.remap``).
     """
     img = _as_image(fimg)
     pts, nrm, lead = _as_normals(points, normals)
@@ -301,42 +309,44 @@ def _profile_offsets(half: int) -> np.ndarray:
     return np.arange(2 * half + 4, dtype=np.float32) - np.float32(half + 1.5)
 
 
-def _scan(
+def _scan_chunks(
     img: np.ndarray, pts: np.ndarray, nrm: np.ndarray, limit: float | np.ndarray, threshold: float, sign: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Find the features on K normals.
+) -> Iterator[tuple[int, int, np.ndarray, np.ndarray, np.ndarray]]:
+    """Find the features on K normals, a chunk of normals at a time.
 
     Parameters
     ----------
     img : ndarray of shape (H, W), float32
-    pts, nrm : ndarray of shape (K, 2), float32
+    pts, nrm : ndarray of shape (K, 2), float32 or float64
     limit : float or ndarray of shape (K,)
         Search half-width of every normal, or of each normal.
     threshold : float
     sign : int
         0 for ``|D|``, -1 for light-to-dark, +1 for dark-to-light.
 
-    Returns
-    -------
+    Yields
+    ------
+    k0, k1 : int
+        The chunk's normals are ``k0 <= k < k1``.
     row : ndarray of shape (F,), int64
-        Normal index of each feature, ascending.
+        Index of each feature's normal *within the chunk*, ascending.
     nu : ndarray of shape (F,), float32
         Sub-pixel offset, ``|nu| <= limit``; ordered along each normal.
     strength : ndarray of shape (F,), float32
         Parabola-interpolated response at the maximum.
     """
     k_total = pts.shape[0]
-    per_normal = np.ndim(limit) > 0
     if k_total == 0:
-        return np.empty(0, np.int64), np.empty(0, np.float32), np.empty(0, np.float32)
+        return
+    per_normal = np.ndim(limit) > 0
     half = int(math.ceil(float(np.max(limit))))
     u = _profile_offsets(half)
     width = 2 * half + 1  # candidate maxima per normal, u = -H .. H
     y_max, x_max = np.float32(img.shape[0] - 1), np.float32(img.shape[1] - 1)
-    rows, nus, strengths = [], [], []
     for k0 in range(0, k_total, _CHUNK_NORMALS):
         k1 = min(k0 + _CHUNK_NORMALS, k_total)
-        prof = _remap_rows(img, pts[k0:k1], nrm[k0:k1], u)
+        p, n = pts[k0:k1], nrm[k0:k1]
+        prof = _remap_rows(img, p, n, u)
         d = cv2.subtract(prof[:, 1:], prof[:, :-1])  # D at u = -(H+1) .. H+1
         if sign == 0:
             s = np.abs(d)
@@ -361,12 +371,24 @@ def _scan(
         # Only features inside the image count: outside it there are no data (replicated
         # border rows would otherwise show up along normals parallel to the border, and
         # remap's output is undefined for coordinates beyond about 2^26).
-        x = pts[k0:k1, 0][r] + nu * nrm[k0:k1, 0][r]
-        y = pts[k0:k1, 1][r] + nu * nrm[k0:k1, 1][r]
+        x = p[r, 0] + nu * n[r, 0]
+        y = p[r, 1] + nu * n[r, 1]
         keep &= (x >= 0) & (x <= x_max) & (y >= 0) & (y <= y_max)
-        rows.append(r[keep] + k0)
-        nus.append(nu[keep])
-        strengths.append((a1 - 0.25 * (a0 - a2) * off)[keep])
+        yield k0, k1, r[keep], nu[keep], (a1 - 0.25 * (a0 - a2) * off)[keep]
+
+
+def _scan(
+    img: np.ndarray, pts: np.ndarray, nrm: np.ndarray, limit: float | np.ndarray, threshold: float, sign: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """All features on K normals: ``row`` (F,) int64 normal index, ``nu`` (F,), ``strength`` (F,).
+
+    See :func:`_scan_chunks`; here ``row`` indexes all K normals.
+    """
+    rows, nus, strengths = [np.empty(0, np.int64)], [np.empty(0, np.float32)], [np.empty(0, np.float32)]
+    for k0, _, r, nu, strength in _scan_chunks(img, pts, nrm, limit, threshold, sign):
+        rows.append(r + k0)
+        nus.append(nu)
+        strengths.append(strength)
     return np.concatenate(rows), np.concatenate(nus), np.concatenate(strengths)
 
 
@@ -630,8 +652,11 @@ def log_likelihood(
     pts, nrm, lead = _as_normals(points, normals)
     if len(lead) < 1:
         raise DataError(f"points: expected shape (..., M, 2), got {lead + (2,)}")
-    row, nu, _ = _scan(img, pts, nrm, float(h), _check_threshold(threshold), _check_polarity(polarity))
-    near = np.exp(nu * nu * np.float32(-0.5 / sigma**2))
-    per_normal = np.bincount(row, weights=near, minlength=pts.shape[0])
     c = 1.0 / (math.sqrt(2.0 * math.pi) * sigma * alpha)
-    return np.log1p(c * per_normal).reshape(lead).sum(axis=-1)
+    scale = np.float32(-0.5 / sigma**2)
+    per_normal = np.zeros(pts.shape[0])
+    chunks = _scan_chunks(img, pts, nrm, float(h), _check_threshold(threshold), _check_polarity(polarity))
+    for k0, k1, row, nu, _ in chunks:
+        near = np.bincount(row, weights=np.exp(nu * nu * scale), minlength=k1 - k0)
+        per_normal[k0:k1] = np.log1p(c * near)
+    return per_normal.reshape(lead).sum(axis=-1)
