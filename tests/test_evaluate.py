@@ -404,7 +404,7 @@ def test_malformed_predictions(tmp_path, text, pattern):
     "text, pattern",
     [
         ("frame,object,cx,cy,bbox_x,bbox_y,bbox_w\n0,0,1,2,3,4,5\n", r"truth file lacks column bbox_h"),
-        ("frame,object,cx,cy,bbox_x,bbox_y,bbox_w,bbox_h,visible\n0,0,1,2,3,4,5,6,2\n", r"line 2: visible must be 0 or 1"),
+        ("frame,object,cx,cy,bbox_x,bbox_y,bbox_w,bbox_h,visible\n0,0,1,2,3,4,5,6,yes\n", r"line 2: visible must be a number"),
         ("frame,object,cx,cy,bbox_x,bbox_y,bbox_w,bbox_h\n0,0,1,2,3,4,5,6\n0,0,1,2,3,4,5,6\n", r"line 3: frame 0 of object 0 repeats"),
         ("frame,object,cx,cy,bbox_x,bbox_y,bbox_w,bbox_h\n0,x,1,2,3,4,5,6\n", r"line 2: frame must be an integer"),
     ],
@@ -463,3 +463,21 @@ def test_pinned_scores_on_a_shifted_track():
     assert (res.precision, res.frames_lost) == (0.575, 5)
     assert res.success_auc == pytest.approx(0.7261904761904763, rel=1e-12)
     assert res.mean_iou == pytest.approx(0.7381554515668547, rel=1e-12)
+
+
+def test_visible_column_is_a_fraction(tmp_path):
+    # trackcli truth files give the visible fraction of the object: partly hidden frames are
+    # scored, fully hidden ones (0) are absent, and the committed sample truth loads.
+    p = tmp_path / "t.truth.csv"
+    p.write_text("frame,object,cx,cy,bbox_x,bbox_y,bbox_w,bbox_h,visible\n"
+                 "0,0,10,10,5,5,10,10,1.0000\n1,0,10,10,5,5,10,10,0.3500\n2,0,10,10,5,5,10,10,0.0000\n")
+    gt = load_truth(p)
+    assert gt.present.tolist() == [True, True, False]
+    with pytest.raises(InputError, match="fraction from 0 to 1"):
+        bad = tmp_path / "bad.truth.csv"
+        bad.write_text("frame,object,cx,cy,bbox_x,bbox_y,bbox_w,bbox_h,visible\n0,0,1,2,3,4,5,6,1.5\n")
+        load_truth(bad)
+    from pathlib import Path
+
+    sample = Path(__file__).resolve().parents[1] / "sample_data" / "test.truth.csv"
+    assert load_truth(sample).present.all()

@@ -11,7 +11,7 @@ Two inputs meet here:
 
   1. a trackcli truth CSV (``<clip>.truth.csv``) whose header names at least ``frame, cx, cy,
      bbox_x, bbox_y, bbox_w, bbox_h``, usually also ``object`` (several objects per frame; one is
-     chosen, ``0`` by default) and ``visible`` (0/1);
+     chosen, ``0`` by default) and ``visible`` (the visible fraction of the object, 0 to 1);
   2. a benchmark box file (``groundtruth_rect.txt`` as in OTB-style folders): one ``x,y,w,h``
      line per frame, the first line being frame 0, fields separated by commas, tabs or spaces;
   3. a folder holding ``groundtruth_rect.txt`` or ``groundtruth.txt``.
@@ -26,7 +26,7 @@ about one pixel, far below the usual 20 px precision threshold.
 
 Which frames are scored
 -----------------------
-A truth frame is *absent* (the target is not in view) when its ``visible`` flag is 0, when any
+A truth frame is *absent* (the target is not in view) when its ``visible`` fraction is 0, when any
 of its box numbers is NaN, or when its box has zero width or height (the ``0,0,0,0`` lines of
 benchmark files).  Absent frames are left out of every metric and counted in
 ``frames_absent``.
@@ -584,7 +584,13 @@ def _load_truth_csv(path: Path, text: str, object_id: int) -> GroundTruth:
         box = [_number(rec[c], where, c) for c in _BOX_COLUMNS]
         if box[2] < 0 or box[3] < 0:
             raise InputError(f"{where}: bbox_w and bbox_h must be >= 0, got {box[2]:g}, {box[3]:g}")
-        visible = _flag(rec["visible"], where, "visible") if has_visible else True
+        if has_visible:
+            fraction = _number(rec["visible"], where, "visible")
+            if not (fraction >= 0.0 and fraction <= 1.0):
+                raise InputError(f"{where}: visible must be a fraction from 0 to 1, got {rec['visible'].strip()!r}")
+            visible = fraction > 0.0
+        else:
+            visible = True
         records[f] = (f, centre, box, visible, where)
     if not objects:
         raise InputError(f"{path}: truth file has a header but no rows")
