@@ -194,12 +194,32 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
     from .template import Template
 
     outline = np.asarray(outline, dtype=float)
+    if closed:
+        outline = canonical_start(outline)
     if len(outline) < n_ctrl:
         # too few points to pin every control point: resample the polygon densely first
         outline = _resample_polygon(outline, max(4 * n_ctrl, 64), closed)
     Q = fit(outline, n_ctrl, degree=degree, closed=closed)
     cp = np.column_stack([Q[:n_ctrl], Q[n_ctrl:]])
     return Template(cp, degree=degree, closed=closed, clip=clip, frame=frame, frame_size=frame_size, source=source)
+
+
+def canonical_start(outline: np.ndarray) -> np.ndarray:
+    """Order a closed outline clockwise on screen, starting at its topmost point.
+
+    Templates of the same object drawn on different frames then have control points in
+    correspondence (control point 0 at the top), which models placed on a new clip rely on.
+    """
+    x, y = outline[:, 0], outline[:, 1]
+    area2 = float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+    if area2 < 0:  # counter-clockwise on screen (y down): reverse
+        outline = outline[::-1]
+    top = outline[:, 1].min()
+    near_top = np.flatnonzero(outline[:, 1] <= top + 0.5)
+    # among the topmost points take the middle one, so flat tops start at their centre
+    cx = outline[near_top, 0].mean()
+    start = near_top[np.argmin(np.abs(outline[near_top, 0] - cx))]
+    return np.roll(outline, -int(start), axis=0)
 
 
 def _resample_polygon(points: np.ndarray, n: int, closed: bool) -> np.ndarray:

@@ -97,9 +97,13 @@ def place_space(space: ShapeSpace, template: Template) -> tuple[ShapeSpace, np.n
     """Re-anchor a learned shape-space on a template drawn in another clip.
 
     The new space keeps the model's deformation columns and template shape, translated so
-    that its centroid lands on the new template's centroid; the initial shape ``X0`` is the
-    projection of the new template onto that space (so a template of a different size or
-    rotation starts the tracker at the matching scale and angle where the space allows it).
+    that its centroid lands on the new template's centroid.  The initial shape ``X0`` puts
+    the model's template there at the size of the new template (the square root of the
+    ratio of their areas) where the space has a scale direction (similarity, affine).
+
+    Only position and size are taken from the new template: a template outlined
+    automatically in clutter is often too ragged to say more (its rotation, for instance),
+    and the tracker itself refines the shape from the first frame on.
 
     Returns ``(space, X0)``.
     """
@@ -113,10 +117,13 @@ def place_space(space: ShapeSpace, template: Template) -> tuple[ShapeSpace, np.n
 
     Q = template.Q
     if template.closed:
-        c_new = np.asarray(curve_area_centroid(Q, template.basis())[1], dtype=float)
+        area_new, c_new = curve_area_centroid(Q, template.basis())
+        area_old, _ = curve_area_centroid(space.Q0, space.basis)
+        ratio = float(np.sqrt(abs(area_new) / abs(area_old))) if abs(area_old) > 0 else 1.0
     else:
         c_new = template.control_points.mean(axis=0)
-    shift = c_new - space.origin
+        ratio = 1.0
+    shift = np.asarray(c_new, dtype=float) - space.origin
     n = space.Nq
     Q0 = space.Q0.copy()
     Q0[:n] += shift[0]
@@ -125,5 +132,8 @@ def place_space(space: ShapeSpace, template: Template) -> tuple[ShapeSpace, np.n
     d["Q0"] = Q0.tolist()
     d["origin"] = (space.origin + shift).tolist()
     placed = ShapeSpace.from_dict(d)
-    X0 = placed.project(Q)
+    # the model's template scaled by `ratio` about the new centroid, expressed in the space
+    centre = np.concatenate([np.full(n, c_new[0]), np.full(n, c_new[1])])
+    X0 = placed.project(centre + ratio * (Q0 - centre))
+    X0[:2] = 0.0
     return placed, X0
