@@ -476,7 +476,7 @@ def _learn_report(model, records, path, as_json: bool) -> None:
                           "seconds": round(s.wall_seconds, 3)} for s in r.runs]} for r in records]
     if as_json:
         _echo_json(_clean_json({"model": str(path), "cycles": cycles, "learning": rep,
-                                "modes": [_mode_dict(m) for m in model.dynamics.modes()]}))
+                                "modes": [_mode_dict(m, model.space.H) for m in model.dynamics.modes()]}))
         return
     for c in cycles:
         per = ", ".join(f"{Path_name(x['clip'])} {x['seconds']:.1f} s ({x['frames']} frames, {x['lost']} lost)"
@@ -493,10 +493,10 @@ def Path_name(p: str) -> str:
     return Path(p).name
 
 
-def _mode_dict(m) -> dict:
+def _mode_dict(m, H=None) -> dict:
     return {"eigenvalue_modulus": m.modulus, "damping_per_s": m.beta, "frequency_hz": m.frequency,
             "decay_time_s": m.decay_time, "period_s": m.period, "stable": m.stable,
-            "dominant": [[int(i), float(w)] for i, w in m.dominant(3)]}
+            "dominant": [[int(i), float(w)] for i, w in m.dominant(3, H)]}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -533,7 +533,7 @@ def inspect_cmd(model_path, as_json):
         "mean": dict(zip(names, map(float, dyn.mean))),
         "steady_state_rms_px": {"total": rms, "translation": rms_t, "deformation": rms_d},
         "A1": dyn.A1.tolist(), "A2": dyn.A2.tolist(), "B0": dyn.B0.tolist(),
-        "modes": [_mode_dict(x) for x in modes],
+        "modes": [_mode_dict(x, space.H) for x in modes],
         "provenance": m.provenance,
     }
     if as_json:
@@ -551,7 +551,7 @@ def inspect_cmd(model_path, as_json):
     click.echo("  modes (slowest first):")
     click.echo("    |lambda|  damping(1/s)  freq(Hz)  decay(s)  period(s)  dominant components")
     for x in modes:
-        dom = ", ".join(f"{names[i]} {w:.2f}" for i, w in x.dominant(3))
+        dom = ", ".join(f"{names[i]} {w:.2f}" for i, w in x.dominant(3, space.H))
         per = f"{x.period:9.3f}" if np.isfinite(x.period) else "        -"
         dec = f"{x.decay_time:8.3f}" if np.isfinite(x.decay_time) else "     inf"
         click.echo(f"    {x.modulus:8.4f}  {x.beta:12.3f}  {x.frequency:8.3f}  {dec}  {per}  {dom}"

@@ -149,16 +149,32 @@ class Mode:
         """True for a conjugate pair (a damped sinusoid), false for a real eigenvalue."""
         return self.eigenvalue.imag > 0
 
-    def dominant(self, count: int = 3) -> list[tuple[int, float]]:
+    def dominant(self, count: int = 3, H: np.ndarray | None = None) -> list[tuple[int, float]]:
         """The ``count`` largest components of the mode shape.
+
+        Parameters
+        ----------
+        count : int
+            How many components.
+        H : ndarray of shape (Nx, Nx), optional
+            Shape-space metric.  Components of a shape vector have different units
+            (pixels for translation, fractions for scale); with ``H`` each component is
+            weighted by the curve displacement it causes, ``|shape[i]|² H[i, i]``, so the
+            weights compare like with like.
 
         Returns
         -------
         list of (index, weight)
-            Shape-space indices with their weights ``|shape[i]|²``, largest first.
+            Shape-space indices with their weights (summing to 1 over all components),
+            largest first.
         """
-        order = np.argsort(-self.weights, kind="stable")[: max(int(count), 0)]
-        return [(int(i), float(self.weights[i])) for i in order]
+        w = self.weights
+        if H is not None:
+            w = np.abs(self.shape) ** 2 * np.clip(np.diag(np.asarray(H, dtype=float)), 0.0, None)
+            total = float(w.sum())
+            w = w / total if total > 0 else self.weights
+        order = np.argsort(-w, kind="stable")[: max(int(count), 0)]
+        return [(int(i), float(w[i])) for i in order]
 
     def summary(self) -> str:
         """One line describing the mode, for reports."""
