@@ -42,6 +42,8 @@ def render_paths(model: Model, paths: np.ndarray, png: Path, *, canvas: tuple[in
 
     c0, _, _ = contour_summary(space, np.zeros(space.Nx))
     cv2.polylines(img, [poly(c0)], True, (150, 150, 150), 2, cv2.LINE_AA, shift=4)
+    # All contours first, then all centroid tracks, so no path's outlines hide another's track.
+    tracks = []
     for k, path in enumerate(paths):
         col = _COLOURS[k % len(_COLOURS)]
         light = tuple(int(255 - 0.45 * (255 - c)) for c in col)
@@ -51,7 +53,9 @@ def render_paths(model: Model, paths: np.ndarray, png: Path, *, canvas: tuple[in
             cents.append(c)
             if t % every == 0:
                 cv2.polylines(img, [poly(contour)], True, light, 1, cv2.LINE_AA, shift=4)
-        cv2.polylines(img, [poly(np.asarray(cents))], False, col, 2, cv2.LINE_AA, shift=4)
+        tracks.append((np.asarray(cents), col))
+    for cents, col in tracks:
+        cv2.polylines(img, [poly(cents)], False, col, 2, cv2.LINE_AA, shift=4)
     cv2.putText(img, f"{len(paths)} paths x {paths.shape[1]} frames", (10, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6,
                 (0, 0, 0), 1, cv2.LINE_AA)
     ok, buf = cv2.imencode(".png", img)
