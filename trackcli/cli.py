@@ -198,13 +198,6 @@ def _progress(ctx: click.Context, length: int, label: str):
                              hidden=hidden)
 
 
-def _clip_stem(clip: str) -> str:
-    from pathlib import Path
-
-    p = Path(clip)
-    return p.stem if p.suffix else p.name
-
-
 def _echo_json(obj) -> None:
     import json
 
@@ -287,108 +280,46 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
       CLIP.TRACKER.csv         per-frame estimates (see README: track format)
       CLIP.TRACKER.rrd         Rerun recording: frames, contour, particles or gates, series
       CLIP.TRACKER.config.yaml the effective configuration
-    and one summary line on stdout.
+    and one summary line on stdout.  With several CLIPS, a clip that fails is reported
+    on stderr and the others still run; the exit code is then 1.
     """
-    from pathlib import Path
-
-    import numpy as np
-
-    from .config import dump_yaml
-    from .outputs import ensure_dir, write_text
-    from .runs import run_clip
+    from .model import load_model
+    from .outputs import ensure_dir
+    from .runs import clip_name, track_clip
+    from .template import load_template
 
     if not model and not template:
         raise click.UsageError("give --model, --template, or both")
     settings = _settings(config, {"condensation.particles": particles, "seed": seed,
                                   **_video_overrides(fps, start, end, step)})
     out = ensure_dir(outdir)
-    stems = [_clip_stem(c) for c in clips]
+    stems = [clip_name(c) for c in clips]
     if len(set(stems)) != len(stems):
         raise click.UsageError("two clips have the same name; run them into different --outdir folders")
+    # files shared by every clip are checked once, before any clip runs
+    if model:
+        load_model(model)
+    if template:
+        load_template(template)
     failures = 0
     for clip, stem in zip(clips, stems):
-        with _open(clip, settings) as video:
-            space, dynamics, X0, source = _tracking_setup(model, template, settings, video)
-            rng = np.random.default_rng(settings.seed)
-            if tracker == "kalman":
-                from .tracking import track_kalman
-
-                def make(frames, space=space, dynamics=dynamics, X0=X0):
-                    return track_kalman(frames, space, dynamics, settings.measurement, settings.kalman, X0=X0)
-            else:
-                from .tracking import track_condensation
-
-                def make(frames, space=space, dynamics=dynamics, X0=X0, rng=rng):
-                    return track_condensation(frames, space, dynamics, settings.measurement,
-                                              settings.condensation, rng, X0=X0)
-            base = out / f"{stem}.{tracker}"
-            write_text(Path(f"{base}.config.yaml"), dump_yaml(settings))
-            params = {"clip": str(clip), "tracker": tracker, "source": source, "settings": _plain_settings(settings)}
-            with _progress(ctx, len(video), f"{stem} ({tracker})") as bar:
-                summary = run_clip(video, make, space, tracker=tracker, csv_path=Path(f"{base}.csv"),
-                                   rrd_path=None if (no_rrd or not settings.output.rrd) else Path(f"{base}.rrd"),
-                                   params=params, jpeg_quality=settings.output.jpeg_quality,
-                                   progress=bar.update, recording_id=f"{stem}-{tracker}-{settings.seed}")
+        try:
+            summary = track_clip(clip, settings=settings, outdir=out, model=model, template=template,
+                                 tracker=tracker, name=stem, rrd=not no_rrd,
+                                 progress=lambda label, n: _progress(ctx, n, label))
+        except TrackcliError as exc:
+            if len(clips) == 1:
+                raise
+            failures += 1
+            click.echo(f"Error: {clip}: {exc}", err=True)
+            continue
         if as_json:
             _echo_json(_clean_json(summary.to_dict()))
         else:
             click.echo(summary.line())
+    if failures:
+        click.echo(f"{failures} of {len(clips)} clips failed", err=True)
     ctx.exit(1 if failures else 0)
-
-
-def _plain_settings(settings):
-    from .config import to_dict
-
-    return to_dict(settings)
-
-
-def _tracking_setup(model_path, template_path, settings, video):
-    """(space, dynamics, X0, description) for `track`."""
-    import numpy as np
-
-    from .model import load_model, place_space
-    from .template import load_template
-    from .tracking import build_space, handset_dynamics
-
-    tau = 1.0 / video.fps
-    if model_path:
-        model = load_model(model_path)
-        if template_path:
-            tmpl = load_template(template_path)
-            _check_template_frame(tmpl, video)
-            space, X0 = place_space(model.space, tmpl)
-            dynamics = _rebase_dynamics(model.dynamics, X0, tau)
-            return space, dynamics, X0, f"model {model_path} placed by template {template_path}"
-        space = model.space
-        return space, _rebase_dynamics(model.dynamics, None, tau), np.zeros(space.Nx), f"model {model_path}"
-    tmpl = load_template(template_path)
-    _check_template_frame(tmpl, video)
-    space = build_space(tmpl, settings.shape_space)
-    return space, handset_dynamics(space, settings.dynamics, tau), np.zeros(space.Nx), f"template {template_path} (hand-set dynamics)"
-
-
-def _check_template_frame(tmpl, video) -> None:
-    if tmpl.frame_size and tuple(tmpl.frame_size) != (video.width, video.height):
-        from .errors import TemplateError
-
-        raise TemplateError(f"the template was drawn on a {tmpl.frame_size[0]}x{tmpl.frame_size[1]} frame "
-                            f"but {video.path} is {video.width}x{video.height}; draw a template on this clip")
-
-
-def _rebase_dynamics(dynamics, X0, tau):
-    """The model's dynamics for a new clip: translation mean moved to X0, tau checked."""
-    import math
-
-    from .dynamics import AR2
-
-    if not math.isclose(dynamics.tau, tau, rel_tol=1e-3):
-        log.warning("the model was learned at %.3g frames/s but this clip runs at %.3g frames/s; "
-                    "its dynamics are used per frame as learned", 1 / dynamics.tau, 1 / tau)
-    if X0 is None:
-        return dynamics
-    mean = dynamics.mean.copy()
-    mean[:2] = X0[:2]
-    return AR2(dynamics.A2, dynamics.A1, dynamics.B0, mean, dynamics.tau)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -432,6 +363,7 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
     from .config import dump_yaml
     from .model import save_model
     from .outputs import ensure_dir, write_text
+    from .runs import check_template_frame
     from .template import load_template
     from .train import learn_from_tracks, train
 
@@ -455,7 +387,7 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
         for c in clips:
             videos.append(_open(c, settings))
         for v in videos:
-            _check_template_frame(tmpl, v)
+            check_template_frame(tmpl, v)
 
         def bar(label, n):
             return _progress(ctx, n, label)
@@ -673,6 +605,7 @@ def sample_data_cmd(ctx, outdir, seed, clips, n_frames, truth_only):
 
 def main() -> None:
     cli(prog_name="trackcli")
+
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,22 +1,40 @@
 """Running a tracker over a clip and writing its outputs (CSV, recording, effective config).
 
+:func:`track_clip` is what ``trackcli track`` does for one clip (and what a batch job runs):
+open the clip, decide what is tracked (a learned model placed by a template drawn on this
+clip, a model alone, or a template with hand-set dynamics), write the effective
+configuration, and call :func:`run_clip`.
+
 :func:`run_clip` drives one of the frame loops of :mod:`trackcli.tracking`, writes every
 result to the track CSV as it arrives, mirrors it into a Rerun recording, and returns a
 :class:`RunSummary` (also the source of the one-line summary the command prints).
-All files are written atomically.
+All files are written atomically: an interrupted run leaves no half-written file.
 """
 
 from __future__ import annotations
 
+import contextlib
+import logging
+import math
+import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any, Callable, ContextManager, Iterable, Iterator
 
 import numpy as np
 
+from .config import Settings, dump_yaml, to_dict
+from .dynamics import AR2
+from .errors import ConfigError, TemplateError
+from .outputs import ensure_dir, write_text
 from .shape_space import ShapeSpace
 from .tracks import TrackWriter
+
+log = logging.getLogger(__name__)
+
+#: The trackers ``track_clip`` can run.
+TRACKERS = ("condensation", "kalman")
 
 #: Colours (RGB) used in recordings.
 ESTIMATE_RGB = (255, 60, 40)
@@ -195,3 +213,190 @@ def _record_series(rec: Any, s: dict[str, list], hist_rows: list, hist_edges: An
         rec.send_series("series/loglik", f, t, np.asarray(s["loglik"], dtype=float))
     if hist_rows and hist_edges is not None:
         rec.log_histogram_image("histogram/tx_over_time", np.vstack(hist_rows), hist_edges)
+
+
+# ---------------------------------------------------------------------------------------------
+# One clip, as `trackcli track` runs it
+
+
+@dataclass(frozen=True)
+class TrackingSetup:
+    """What is tracked in one clip.
+
+    Attributes
+    ----------
+    space : ShapeSpace
+        The shape-space, anchored in this clip.
+    dynamics : AR2
+        Dynamics per frame interval of this clip.
+    X0 : ndarray of shape (Nx,)
+        Initial shape vector.
+    source : str
+        One-line description (for logs and recordings).
+    """
+
+    space: ShapeSpace
+    dynamics: AR2
+    X0: np.ndarray
+    source: str
+
+
+def clip_name(clip: str | os.PathLike[str]) -> str:
+    """Default name of a clip's outputs: a file's stem, or a folder's name."""
+    p = Path(clip)
+    return p.stem if p.suffix else p.name
+
+
+def check_template_frame(template: Any, video: Any) -> None:
+    """Raise TemplateError if ``template`` was drawn on a frame of another size than ``video``'s."""
+    if template.frame_size and tuple(template.frame_size) != (video.width, video.height):
+        raise TemplateError(f"the template was drawn on a {template.frame_size[0]}x{template.frame_size[1]} frame "
+                            f"but {video.path} is {video.width}x{video.height}; draw a template on this clip")
+
+
+def rebase_dynamics(dynamics: AR2, X0: np.ndarray | None, tau: float) -> AR2:
+    """A model's dynamics for a new clip: the translation mean moved to ``X0[:2]``.
+
+    The frame interval is checked against ``tau`` (seconds) and only warned about: learned
+    dynamics are used per frame as learned.
+    """
+    if not math.isclose(dynamics.tau, tau, rel_tol=1e-3):
+        log.warning("the model was learned at %.3g frames/s but this clip runs at %.3g frames/s; "
+                    "its dynamics are used per frame as learned", 1 / dynamics.tau, 1 / tau)
+    if X0 is None:
+        return dynamics
+    mean = dynamics.mean.copy()
+    mean[:2] = X0[:2]
+    return AR2(dynamics.A2, dynamics.A1, dynamics.B0, mean, dynamics.tau)
+
+
+def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.PathLike[str] | None,
+                   settings: Settings, video: Any) -> TrackingSetup:
+    """Decide what is tracked in ``video``.
+
+    - ``model`` and ``template``: the model's shape-space and learned dynamics, placed where
+      the template was drawn on this clip (position and size, see
+      :func:`trackcli.model.place_space`);
+    - ``model`` alone: the model as learned, starting where its own template was drawn;
+    - ``template`` alone: the template's shape-space (``settings.shape_space``) with hand-set
+      dynamics (``settings.dynamics``).
+
+    Raises
+    ------
+    ConfigError
+        Neither a model nor a template is given.
+    ModelError, TemplateError
+        A file is missing or malformed, or the template does not fit this clip or model.
+    """
+    from .model import load_model, place_space
+    from .template import load_template
+    from .tracking import build_space, handset_dynamics
+
+    if not model and not template:
+        raise ConfigError("nothing to track: give a model, a template, or both")
+    tau = 1.0 / video.fps
+    if model:
+        m = load_model(model)
+        if template:
+            tmpl = load_template(template)
+            check_template_frame(tmpl, video)
+            space, X0 = place_space(m.space, tmpl)
+            return TrackingSetup(space, rebase_dynamics(m.dynamics, X0, tau), X0,
+                                 f"model {model} placed by template {template}")
+        return TrackingSetup(m.space, rebase_dynamics(m.dynamics, None, tau), np.zeros(m.space.Nx), f"model {model}")
+    tmpl = load_template(template)
+    check_template_frame(tmpl, video)
+    space = build_space(tmpl, settings.shape_space)
+    return TrackingSetup(space, handset_dynamics(space, settings.dynamics, tau), np.zeros(space.Nx),
+                         f"template {template} (hand-set dynamics)")
+
+
+def output_base(outdir: str | os.PathLike[str], name: str, tracker: str) -> Path:
+    """``outdir/NAME.TRACKER``: the outputs are this plus ``.csv``, ``.rrd``, ``.config.yaml``."""
+    return Path(outdir) / f"{name}.{tracker}"
+
+
+class _NullBar:
+    def update(self, n: int) -> None:
+        pass
+
+
+def track_clip(
+    clip: str | os.PathLike[str],
+    *,
+    settings: Settings,
+    outdir: str | os.PathLike[str],
+    model: str | os.PathLike[str] | None = None,
+    template: str | os.PathLike[str] | None = None,
+    tracker: str = "condensation",
+    name: str | None = None,
+    rrd: bool = True,
+    progress: Callable[[str, int], ContextManager[Any]] | None = None,
+) -> RunSummary:
+    """Track one clip and write its outputs: what ``trackcli track`` does per clip.
+
+    Writes, atomically, in ``outdir`` (created if needed):
+
+    - ``NAME.TRACKER.config.yaml``: the effective settings (written first);
+    - ``NAME.TRACKER.csv``: per-frame estimates (see :mod:`trackcli.tracks`);
+    - ``NAME.TRACKER.rrd``: the Rerun recording, if ``rrd`` and ``settings.output.rrd``.
+
+    Parameters
+    ----------
+    clip : path
+        Video file or image folder, read with ``settings.video`` (fps, start, end, step).
+    settings : Settings
+        Effective settings; ``settings.seed`` seeds CONDENSATION.
+    outdir : path
+        Output folder.
+    model, template : path, optional
+        What to track (at least one), see :func:`tracking_setup`.
+    tracker : {"condensation", "kalman"}
+    name : str, optional
+        Output file prefix; default :func:`clip_name` of ``clip``.
+    rrd : bool
+        Write a recording (when the settings also ask for one).
+    progress : callable, optional
+        ``progress(label, n_frames)`` returns a context manager whose value has
+        ``update(n)``, called after every frame (e.g. a progress bar).
+
+    Returns
+    -------
+    RunSummary
+
+    Raises
+    ------
+    ConfigError
+        Unknown tracker, nothing to track, or a frame selection outside the clip.
+    VideoError, ModelError, TemplateError
+        An input cannot be read or does not fit this clip.
+    """
+    from . import tracking
+    from .video import open_video
+
+    if tracker not in TRACKERS:
+        raise ConfigError(f"tracker: expected one of {', '.join(TRACKERS)}, got {tracker!r}")
+    name = name or clip_name(clip)
+    out = ensure_dir(outdir)
+    v = settings.video
+    with open_video(clip, fps=v.fps, start=v.start, end=v.end, step=v.step) as video:
+        setup = tracking_setup(model, template, settings, video)
+        space, dynamics, X0 = setup.space, setup.dynamics, setup.X0
+        if tracker == "kalman":
+            def make(frames: Iterable[Any]) -> Iterator[Any]:
+                return tracking.track_kalman(frames, space, dynamics, settings.measurement, settings.kalman, X0=X0)
+        else:
+            rng = np.random.default_rng(settings.seed)
+
+            def make(frames: Iterable[Any]) -> Iterator[Any]:
+                return tracking.track_condensation(frames, space, dynamics, settings.measurement,
+                                                   settings.condensation, rng, X0=X0)
+        base = output_base(out, name, tracker)
+        write_text(Path(f"{base}.config.yaml"), dump_yaml(settings))
+        params = {"clip": str(clip), "tracker": tracker, "source": setup.source, "settings": to_dict(settings)}
+        bar_ctx = progress(f"{name} ({tracker})", len(video)) if progress else contextlib.nullcontext(_NullBar())
+        with bar_ctx as bar:
+            return run_clip(video, make, space, tracker=tracker, csv_path=Path(f"{base}.csv"),
+                            rrd_path=Path(f"{base}.rrd") if (rrd and settings.output.rrd) else None,
+                            params=params, jpeg_quality=settings.output.jpeg_quality,
+                            progress=bar.update, recording_id=f"{name}-{tracker}-{settings.seed}")
