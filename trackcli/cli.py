@@ -607,6 +607,9 @@ def main() -> None:
     cli(prog_name="trackcli")
 
 
+from .batch_cli import batch_cmd  # noqa: E402
+
+cli.add_command(batch_cmd)
 
 if __name__ == "__main__":  # pragma: no cover
     main()
