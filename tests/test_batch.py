@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import json
 import os
+import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -462,3 +464,32 @@ def test_quiet_batch_prints_nothing_on_stderr(inputs, tmp_path):
         assert result.stderr == ""
         assert result.stdout.splitlines()[0].split() == ["clip", "status", "frames", "fps", "precision", "centre",
                                                          "err", "AUC", "seconds"]
+
+
+# ---------------------------------------------------------------------------------------------
+# The example
+
+
+def test_example_manifest_is_valid_and_matches_its_script(tmp_path):
+    """examples/sample_manifest.yaml loads, and batch_sample.sh makes every file it needs."""
+    examples = REPO / "examples"
+    script = (examples / "batch_sample.sh").read_text()
+    made = set(re.findall(r'-o "\$RUN/([\w.-]+\.yaml)"', script))
+    # a copy of the layout it expects: the manifest in examples/, sample_data/ and configs/ beside
+    for name in ("sample_data", "configs"):
+        (tmp_path / name).symlink_to(REPO / name)
+    (tmp_path / "examples" / "sample-run").mkdir(parents=True)
+    manifest = tmp_path / "examples" / "sample_manifest.yaml"
+    shutil.copy(examples / "sample_manifest.yaml", manifest)
+    needed = set()
+    for job in yaml.safe_load(manifest.read_text())["clips"]:
+        needed.add(Path(job["template"]).name)
+    needed.add(Path(yaml.safe_load(manifest.read_text())["defaults"]["model"]).name)
+    assert needed <= made, f"the script does not make {sorted(needed - made)}"
+    for name in made:
+        (tmp_path / "examples" / "sample-run" / name).write_text("stub\n")
+    jobs = batch.load_manifest(manifest).jobs
+    assert [j.name for j in jobs] == ["train", "test", "three_heads-left", "three_heads-walker", "bouncing_ball"]
+    assert all(j.truth is not None for j in jobs)
+    assert [j.object_id for j in jobs] == [0, 0, 0, 2, 0]
+    assert jobs[-1].model is None and jobs[0].settings.seed == 0
