@@ -615,7 +615,13 @@ def run_job(job: Job, outdir: str | os.PathLike[str]) -> JobResult:
         return _failed(job, folder, str(exc), t0)
     except Exception as exc:  # a bug, or a library error trackcli does not translate
         log.debug("job %s failed", job.name, exc_info=True)
-        return _failed(job, folder, f"{type(exc).__name__}: {exc}", t0)
+        return _failed(job, folder, _one_line(exc), t0)
+
+
+def _one_line(exc: BaseException) -> str:
+    """``Type: first line of the message`` of an unexpected exception."""
+    lines = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {lines[0]}" if lines else type(exc).__name__
 
 
 def _worker_id() -> dict[str, Any]:
@@ -766,9 +772,9 @@ def _run_processes(jobs: list[Job], outdir: Path, workers: int) -> Iterator[JobR
             try:
                 yield fut.result()
             except BrokenProcessPool as exc:
-                yield _failed(job, job_folder(outdir, job), f"worker process died ({exc})")
+                yield _failed(job, job_folder(outdir, job), f"worker process died ({_one_line(exc)})")
             except Exception as exc:
-                yield _failed(job, job_folder(outdir, job), f"{type(exc).__name__}: {exc}")
+                yield _failed(job, job_folder(outdir, job), _one_line(exc))
     except BaseException:
         pool.shutdown(wait=True, cancel_futures=True)
         raise
@@ -809,7 +815,7 @@ def _run_dask(jobs: list[Job], outdir: Path, scheduler: Any) -> Iterator[JobResu
             try:
                 yield fut.result()
             except Exception as exc:  # the worker died, or the task could not run
-                yield _failed(job, job_folder(outdir, job), f"{type(exc).__name__}: {exc}")
+                yield _failed(job, job_folder(outdir, job), _one_line(exc))
     except BaseException:
         with contextlib.suppress(Exception):
             client.cancel(futures)
