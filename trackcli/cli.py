@@ -47,6 +47,7 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
       learn   track training clips with a Kalman contour tracker and learn AR(2) dynamics
       track   follow the object in test footage with CONDENSATION (or Kalman)
       eval    score estimates against ground truth
+      batch   run many clips from a manifest, locally or on a Dask cluster
 
     Every run writes a Rerun recording (.rrd) and CSV files of the estimates.
     """
