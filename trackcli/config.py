@@ -156,14 +156,22 @@ class CondensationSettings:
     schedule_frames: int = _f(4, "int", "frames over which N falls from initial_particles to particles", lo=1)
     resampling: str = _f("multinomial", "str", "selection scheme", choices=("multinomial", "systematic", "stratified"))
     ess_threshold: float | None = _f(None, "float", "resample only when ESS/N falls below this ratio; null = every frame", lo=0, lo_open=True, hi=1, nullable=True)
-    search: float = _f(15.0, "float", "fixed search half-width h along each normal, px", lo=1, hi=200)
-    sigma: float = _f(3.0, "float", "feature position noise sigma, px (AC eq 12.2)", lo=0, lo_open=True)
-    alpha: float = _f(0.02, "float", "clutter density alpha, features per px (AC eq 12.2)", lo=0, lo_open=True)
+    likelihood: str = _f("clutter", "str", "observation model: clutter (AC eq 12.2) or truncated (Isard & Blake 1996 eqs 10-11)", choices=("clutter", "truncated"))
+    search: float = _f(15.0, "float", "fixed search half-width h along each normal, px (truncated: also the penalty h^2)", lo=1, hi=200)
+    sigma: float = _f(3.0, "float", "feature position noise sigma, px", lo=0, lo_open=True)
+    alpha: float = _f(0.02, "float", "clutter density alpha, features per px (clutter model only)", lo=0, lo_open=True)
     init: str = _f("template", "str", "initial sample set", choices=("template", "steady_state"))
     init_translation: float = _f(10.0, "float", "initial spread of translation around the template, px (init: template)", lo=0)
     init_deformation: float = _f(0.02, "float", "initial spread of the other shape components (init: template)", lo=0)
+    init_speed: float = _f(0.0, "float", "initial spread of translational velocity, px/frame, for an object already moving on the first frame (init: template)", lo=0)
     histogram_bins: int = _f(64, "int", "bins of the horizontal-translation histogram", lo=2, hi=4096)
     display_particles: int = _f(60, "int", "particle contours drawn per frame in the recording", lo=0, hi=10000)
+
+
+@dataclass(frozen=True)
+class PlacementSettings:
+    translation_noise: float = _f(1.0, "float", "factor on a learned model's translational process noise when it tracks a clip: how much more agile the motion is than in training (1 = as learned)", lo=0, lo_open=True, hi=1000)
+    deformation_noise: float = _f(1.0, "float", "the same factor for the rest of shape-space (rotation, scale, other deformation)", lo=0, lo_open=True, hi=1000)
 
 
 @dataclass(frozen=True)
@@ -189,6 +197,7 @@ class Settings:
     kalman: KalmanSettings = _section(KalmanSettings, "Kalman contour tracker")
     dynamics: DynamicsSettings = _section(DynamicsSettings, "hand-set AR(2) dynamics")
     condensation: CondensationSettings = _section(CondensationSettings, "CONDENSATION")
+    placement: PlacementSettings = _section(PlacementSettings, "a learned model tracking a clip (track --model)")
     learning: LearningSettings = _section(LearningSettings, "learning dynamics")
     output: OutputSettings = _section(OutputSettings, "outputs")
 

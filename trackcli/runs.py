@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import math
 import os
 import time
 from dataclasses import asdict, dataclass
@@ -254,30 +253,16 @@ def check_template_frame(template: Any, video: Any) -> None:
                             f"but {video.path} is {video.width}x{video.height}; draw a template on this clip")
 
 
-def rebase_dynamics(dynamics: AR2, X0: np.ndarray | None, tau: float) -> AR2:
-    """A model's dynamics for a new clip: the translation mean moved to ``X0[:2]``.
-
-    The frame interval is checked against ``tau`` (seconds) and only warned about: learned
-    dynamics are used per frame as learned.
-    """
-    if not math.isclose(dynamics.tau, tau, rel_tol=1e-3):
-        log.warning("the model was learned at %.3g frames/s but this clip runs at %.3g frames/s; "
-                    "its dynamics are used per frame as learned", 1 / dynamics.tau, 1 / tau)
-    if X0 is None:
-        return dynamics
-    mean = dynamics.mean.copy()
-    mean[:2] = X0[:2]
-    return AR2(dynamics.A2, dynamics.A1, dynamics.B0, mean, dynamics.tau)
-
-
 def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.PathLike[str] | None,
                    settings: Settings, video: Any) -> TrackingSetup:
     """Decide what is tracked in ``video``.
 
     - ``model`` and ``template``: the model's shape-space and learned dynamics, placed where
       the template was drawn on this clip (position and size, see
-      :func:`trackcli.model.place_space`);
-    - ``model`` alone: the model as learned, starting where its own template was drawn;
+      :func:`trackcli.model.place_space`; dynamics adapted by
+      :func:`trackcli.model.place_dynamics` with ``settings.placement``);
+    - ``model`` alone: the model as learned, starting where its own template was drawn
+      (dynamics adapted as above, mean kept);
     - ``template`` alone: the template's shape-space (``settings.shape_space``) with hand-set
       dynamics (``settings.dynamics``).
 
@@ -288,7 +273,7 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
     ModelError, TemplateError
         A file is missing or malformed, or the template does not fit this clip or model.
     """
-    from .model import load_model, place_space
+    from .model import load_model, place_dynamics, place_space
     from .template import load_template
     from .tracking import build_space, handset_dynamics
 
@@ -297,13 +282,16 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
     tau = 1.0 / video.fps
     if model:
         m = load_model(model)
+        noise = {"translation_noise": settings.placement.translation_noise,
+                 "deformation_noise": settings.placement.deformation_noise}
         if template:
             tmpl = load_template(template)
             check_template_frame(tmpl, video)
             space, X0 = place_space(m.space, tmpl)
-            return TrackingSetup(space, rebase_dynamics(m.dynamics, X0, tau), X0,
+            return TrackingSetup(space, place_dynamics(m.dynamics, space, X0, tau, **noise), X0,
                                  f"model {model} placed by template {template}")
-        return TrackingSetup(m.space, rebase_dynamics(m.dynamics, None, tau), np.zeros(m.space.Nx), f"model {model}")
+        return TrackingSetup(m.space, place_dynamics(m.dynamics, m.space, None, tau, **noise),
+                             np.zeros(m.space.Nx), f"model {model}")
     tmpl = load_template(template)
     check_template_frame(tmpl, video)
     space = build_space(tmpl, settings.shape_space)

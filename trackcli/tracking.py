@@ -207,7 +207,12 @@ def track_kalman(
 
 
 def initial_covariance(space: ShapeSpace, settings: CondensationSettings) -> np.ndarray:
-    """Diagonal covariance of the hand-placed initial sample set (``init: template``)."""
+    """Diagonal covariance of the hand-placed initial sample set (``init: template``).
+
+    ``init_translation`` (px) on the two translation components, ``init_deformation`` on
+    every other component (in the units of ``X``: for similarity and affine spaces, a
+    fraction of the template's size).
+    """
     var = np.full(space.Nx, settings.init_deformation**2)
     var[:2] = settings.init_translation**2
     return np.diag(var)
@@ -224,13 +229,21 @@ def track_condensation(
     X0: np.ndarray | None = None,
     hist_range: tuple[float, float] | None = None,
 ) -> Iterator[FrameResult]:
-    """Run CONDENSATION over ``frames`` with the clutter observation model (AC eq 12.2).
+    """Run CONDENSATION over ``frames`` (AC Fig 12.6).
 
-    The sample set starts either as a Gaussian about ``X0`` (``settings.init = "template"``)
-    or from the steady state of the motion model (``"steady_state"``), with
-    ``initial_particles`` samples falling to ``particles`` over ``schedule_frames`` frames.
-    On the first frame the initial samples are weighted without prediction; afterwards every
-    frame is select → predict → weight.
+    The observation model is ``settings.likelihood``: ``"clutter"``, AC eq 12.2
+    (:func:`trackcli.measure.log_likelihood`), or ``"truncated"``, the truncated Gaussian of
+    Isard & Blake 1996 eqs 10–11 (:func:`trackcli.measure.truncated_log_likelihood`).
+
+    The sample set starts either as a Gaussian about ``X0`` (``settings.init = "template"``,
+    AC §12.4, "positioned by hand") or from the steady state of the motion model
+    (``"steady_state"``, 000 §5.1), with ``initial_particles`` samples falling to
+    ``particles`` over ``schedule_frames`` frames.  A hand-placed set starts at rest unless
+    ``settings.init_speed`` > 0: then each sample's previous shape is its current one less
+    a velocity drawn from ``N(0, init_speed² I)`` (px/frame) in translation, for an object
+    that may already be moving when the template is drawn (the second-order state carries
+    velocity, AC eq 9.16).  On the first frame the initial samples are weighted without
+    prediction; afterwards every frame is select → predict → weight.
 
     ``hist_range`` is the range of horizontal translation ``tx`` covered by the histogram
     (default: the frame width around the template).
@@ -242,6 +255,10 @@ def track_condensation(
     n0 = schedule(0)
     if settings.init == "template":
         particles = cond.init_gaussian(X0, initial_covariance(space, settings), n0, rng)
+        if settings.init_speed > 0:
+            v = np.zeros_like(particles.cur)
+            v[:, :2] = settings.init_speed * rng.standard_normal((particles.n, 2))
+            particles = cond.ParticleSet(particles.cur - v, particles.cur, particles.log_w)
     else:
         particles = cond.init_steady_state(dynamics, n0, rng)
     edges = None
@@ -257,6 +274,10 @@ def track_condensation(
 
         def loglik(X: np.ndarray) -> np.ndarray:
             pts, nrm = space.points_normals(X, sampler)
+            if settings.likelihood == "truncated":
+                return measure.truncated_log_likelihood(fimg, pts, nrm, h=settings.search, sigma=settings.sigma,
+                                                        threshold=measurement.threshold,
+                                                        polarity=measurement.polarity)
             return measure.log_likelihood(fimg, pts, nrm, h=settings.search, sigma=settings.sigma,
                                           alpha=settings.alpha, threshold=measurement.threshold,
                                           polarity=measurement.polarity)
