@@ -11,12 +11,15 @@ Four clips, each 480×360 at 25 fps, are rendered from a seed:
 ``test``
     The same object moving agilely (velocity switching every few frames, sudden reversals,
     peak speeds of 12–15 px/frame) over heavy clutter: lines at many angles, text-like
-    strokes, texture and static look-alike silhouettes, some only partly drawn; a pole
-    passes in front of the object for about ten frames.
+    strokes, texture and static look-alike silhouettes, some only partly drawn (none where
+    the object stands in the first frame, on which a template is drawn); a pole passes in
+    front of the object for about ten frames.
 ``three_heads``
-    Three similar heads (paper 000 §5.1): two stand roughly still, the third walks from the
-    right to the left in front of them (drawn on top).  The person on the left stands
-    against a plain wall, the others against clutter.
+    Three similar heads (paper 000 §5.1), of nearly the same size (scales 0.95, 0.97, 1):
+    two stand roughly still, the third walks from the right to the left in front of them
+    (drawn on top).  The person on the left stands against a plain wall, the one in the
+    middle in front of a door frame; a picture and book shelves hang above head height on
+    the right, so that the three outlines are about equally visible when apart.
 ``bouncing_ball``
     A ball in parabolic flight over a floor, losing energy at each bounce, where its
     vertical velocity reverses within one frame (paper 001 §8).
@@ -897,9 +900,14 @@ def _agile_path(rng: np.random.Generator, n: int, box: np.ndarray, vmax: float) 
     return out
 
 
-def _clutter(rng: np.random.Generator, base: np.ndarray, sprite: _Sprite) -> np.ndarray:
+def _clutter(rng: np.random.Generator, base: np.ndarray, sprite: _Sprite, clear_of: np.ndarray) -> np.ndarray:
     """The static background of ``test``: texture, hatched patches, look-alike silhouettes,
-    lines at many angles and text-like strokes.  Returns (H, W, 3) float32 BGR."""
+    lines at many angles and text-like strokes.  Returns (H, W, 3) float32 BGR.
+
+    The look-alike silhouettes sit in 8 of the 12 cells of a 4 × 3 grid, chosen at random
+    among the cells whose centre is at least :data:`_CLEAR_RADIUS` px from ``clear_of``
+    (the object's position in the first frame, where the template is drawn): the object
+    starts out clear of its doubles, and meets them as it moves."""
     W, H = FRAME_SIZE
     bg = _gradient(FRAME_SIZE, [(200, 196, 186), (170, 182, 196), (186, 180, 170), (196, 198, 204)])
     bg += (16.0 * _smooth_noise(rng, (H, W), 6.0))[..., None]
@@ -928,7 +936,9 @@ def _clutter(rng: np.random.Generator, base: np.ndarray, sprite: _Sprite) -> np.
     # painted over, or only part of the outline drawn
     canvas = img.astype(np.float32)
     cells = [(gx, gy) for gy in range(3) for gx in range(4)]
-    order = rng.permutation(len(cells))[:8]
+    far = [math.hypot((gx + 0.5) * W / 4 - clear_of[0], (gy + 0.5) * H / 3 - clear_of[1]) >= _CLEAR_RADIUS
+           for gx, gy in cells]  # fmt: skip
+    order = [int(i) for i in rng.permutation(len(cells)) if far[i]][:8]
     strokes = []
     for n, ci in enumerate(order):
         gx, gy = cells[ci]
@@ -979,6 +989,10 @@ def _clutter(rng: np.random.Generator, base: np.ndarray, sprite: _Sprite) -> np.
         cv2.putText(img, word, org, fonts[int(rng.integers(len(fonts)))], float(rng.uniform(0.5, 1.3)),
                     colour, int(rng.integers(1, 4)), cv2.LINE_AA)  # fmt: skip
     return img.astype(np.float32)
+
+
+_CLEAR_RADIUS = 125.0
+"""Look-alikes of ``test`` are centred at least this far (px, up to jitter) from the object's start."""
 
 
 def _pole_sprite(length: float, width: float) -> _Sprite:
@@ -1032,7 +1046,7 @@ def _build_test(seed: int, n_frames: int) -> _Scene:
     poses = poses_full[:, :n_frames]
 
     sprite = _object_sprite(seed)
-    background = _clutter(look_rng, base, sprite)
+    background = _clutter(look_rng, base, sprite, poses[0, 0, :2])
 
     def items(k: int) -> list[_Item]:
         out = [_Item(base, sprite, tuple(poses[0, k]), object=0)]
@@ -1061,19 +1075,21 @@ def _build_test(seed: int, n_frames: int) -> _Scene:
 
 
 def _room(rng: np.random.Generator) -> np.ndarray:
-    """Background of ``three_heads``: a plain wall on the left, furniture and clutter elsewhere."""
+    """Background of ``three_heads``: a plain wall on the left, a door frame, a picture and
+    book shelves (above the heads' height) on the right."""
     W, H = FRAME_SIZE
     bg = _gradient(FRAME_SIZE, [(200, 210, 218), (190, 200, 212), (184, 194, 204), (172, 184, 198)])
     bg += (3.0 * _smooth_noise(rng, (H, W), 10.0) + 2.0 * _smooth_noise(rng, (H, W), 0.0))[..., None]
     img = np.clip(np.rint(bg), 0, 255).astype(np.uint8)
-    # a door frame, a picture, a bookshelf with books, a lamp stand: right two thirds only
+    # a door frame, a picture, shelves with books: right two thirds only; the shelves end
+    # above head height, so the walker's outline is not cut up by books
     cv2.rectangle(img, (205, 40), (300, 365), (60, 90, 120), 5, cv2.LINE_AA)
     cv2.rectangle(img, (215, 50), (290, 365), (150, 170, 190), -1, cv2.LINE_AA)
     cv2.rectangle(img, (320, 60), (400, 130), (40, 50, 60), 3, cv2.LINE_AA)
     cv2.rectangle(img, (326, 66), (394, 124), (120, 150, 100), -1, cv2.LINE_AA)
     cv2.line(img, (330, 118), (360, 80), (60, 80, 60), 2, cv2.LINE_AA)
     cv2.line(img, (360, 80), (390, 110), (60, 80, 60), 2, cv2.LINE_AA)
-    for shelf_y in (170, 230, 290):
+    for shelf_y in (75, 135, 195):
         cv2.line(img, (395, shelf_y), (480, shelf_y), (50, 70, 90), 4, cv2.LINE_AA)
         x = 398
         while x < 478:
@@ -1092,8 +1108,9 @@ def _build_three_heads(seed: int, n_frames: int) -> _Scene:
     tau = 1.0 / FPS
     k = np.arange(L)
     poses = np.empty((3, L, 4))
-    # two people standing roughly still: small AR(2) sway about a fixed pose
-    for j, (x, y, s) in enumerate([(95.0, 268.0, 0.86), (235.0, 262.0, 0.92)]):
+    # two people standing roughly still: small AR(2) sway about a fixed pose; the three are
+    # of nearly one size, so that one template fits them all about equally well
+    for j, (x, y, s) in enumerate([(95.0, 268.0, 0.95), (235.0, 262.0, 0.97)]):
         sway = []
         for limit in (2.0, 1.2, math.radians(2.0), 0.01):
             a1, a2 = _ar2_coefficients(float(motion_rng.uniform(0.2, 0.5)), 1.0, tau)
@@ -1108,7 +1125,7 @@ def _build_three_heads(seed: int, n_frames: int) -> _Scene:
     poses[2, :, 0] = x0 - speed * k
     poses[2, :, 1] = 282.0 - 4.0 * np.abs(np.sin(np.pi * k / step + phase))
     poses[2, :, 2] = math.radians(1.5) * np.sin(np.pi * k / step + phase)
-    poses[2, :, 3] = 0.98
+    poses[2, :, 3] = 1.0
     poses = _round_poses(poses[:, :n_frames])
 
     base = head_and_shoulders()
