@@ -49,7 +49,7 @@ def test_defaults_load_without_a_file():
     assert s.format == 1
     assert s.shape_space == "similarity"
     assert s.measurement.n_normals == 24
-    assert s.kalman.rho_f == 5.0
+    assert s.kalman.rho_f == 1.0
     assert s.condensation.particles == 500
     assert s.dynamics.translation.rho == 500.0
     assert s.dynamics.deformation.rho == 15.0  # the deformation section has its own defaults

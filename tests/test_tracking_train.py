@@ -196,12 +196,6 @@ def _learned_track_errors(clip, template, model, outdir, truth, config=None) -> 
     return centroid_errors(read_rows(outdir / "train.kalman.csv"), truth)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "With the default kalman.rho_f = 5 px (sigma = 12 px per normal) the tracker smooths heavily "
-    "under learned dynamics, so the cycle-2 track under-states the motion noise (residual RMS "
-    "0.26 -> 0.12 px) and the 2-cycle model is over-confident: ~3.4 px mean centroid error and "
-    "lost frames on its own training clip, against 1.45 px hand-set.  Learning works with a "
-    "rho_f that matches this clean clip (next test)."))
 def test_learned_model_tracks_the_training_clip_at_least_as_well_as_handset(
         clip, template, learned, truth, work, handset_errors):
     model, _ = learned

@@ -124,7 +124,7 @@ class MeasurementSettings:
 
 @dataclass(frozen=True)
 class KalmanSettings:
-    rho_f: float = _f(5.0, "float", "observation uncertainty rho_f in px (AC eq 8.17)", lo=0, lo_open=True)
+    rho_f: float = _f(1.0, "float", "observation uncertainty rho_f in px (AC eq 8.17)", lo=0, lo_open=True)
     kappa: float = _f(2.0, "float", "validation gate width in standard deviations (AC Fig 8.6)", lo=0, lo_open=True, hi=10)
     min_gate: float = _f(3.0, "float", "smallest search half-width along a normal, px", lo=0)
     max_gate: float = _f(40.0, "float", "largest search half-width along a normal, px", lo=1)
