@@ -27,8 +27,8 @@ $T draw sample_data/three_heads.mp4 --box 37,186,117,133 -o "$RUN/three_heads-le
 $T draw sample_data/three_heads.mp4 --box 358,186,132,150 -o "$RUN/three_heads-walker.yaml" >&2
 $T draw sample_data/bouncing_ball.mp4 --ellipse 40,70,16,16 -o "$RUN/ball.yaml" >&2
 
-echo "== learn: head dynamics from the training clip, 2 track-learn cycles" >&2
-$T -q learn --template "$RUN/head-train.yaml" sample_data/train.mp4 -o "$RUN/head-model.yaml" --cycles 2 --no-rrd >&2
+echo "== learn: head dynamics from the training clip (settings of configs/sample-clutter.yaml)" >&2
+$T -q learn -c configs/sample-clutter.yaml --template "$RUN/head-train.yaml" sample_data/train.mp4 -o "$RUN/head-model.yaml" --no-rrd >&2
 
 echo "== batch: $*" >&2
 status=0
