@@ -400,10 +400,9 @@ class AR2:
         start = self.mean if x0 is None else self._vector(x0, "x0")
         second = start if x1 is None else self._vector(x1, "x1")
         total = n_frames + burn_in
-        path = np.empty((max(total, 2), self.nx))
-        path[0], path[1] = start, second
+        dev = np.zeros((max(total, 2), self.nx))
+        dev[0], dev[1] = start - self.mean, second - self.mean
         noise = rng.standard_normal((max(total - 2, 0), self.nx)) @ self.B0.T
-        dev = path - self.mean
         for k in range(2, total):
             dev[k] = self.A2 @ dev[k - 2] + self.A1 @ dev[k - 1] + noise[k - 2]
         return (dev + self.mean)[burn_in:total]
