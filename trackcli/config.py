@@ -258,18 +258,10 @@ def _deep_copy(d: Any) -> Any:
 
 def read_yaml(path: str | Path) -> dict[str, Any]:
     """Read a configuration file into a plain mapping, with one-line errors."""
+    from .outputs import read_yaml_file
+
     p = Path(path)
-    if not p.is_file():
-        raise ConfigError(f"{p}: no such configuration file")
-    try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" line {mark.line + 1}" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or "not valid YAML"
-        raise ConfigError(f"{p}{where}: {problem}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{p}: cannot read ({exc})") from None
+    data = read_yaml_file(p, "configuration", ConfigError)
     if data is None:
         return {}
     if not isinstance(data, dict):

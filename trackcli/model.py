@@ -31,7 +31,7 @@ import yaml
 from .config import Settings, settings_from_dict, to_dict
 from .dynamics import AR2, symmetric_sqrt
 from .errors import ConfigError, ModelError, TrackcliError
-from .outputs import write_text
+from .outputs import read_yaml_file, write_text
 from .shape_space import ShapeSpace
 from .template import Template
 
@@ -70,12 +70,7 @@ def save_model(path: str | Path, model: Model) -> Path:
 def load_model(path: str | Path) -> Model:
     """Read and validate a model file; errors name the file and the key."""
     p = Path(path)
-    if not p.is_file():
-        raise ModelError(f"{p}: no such model file")
-    try:
-        d = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise ModelError(f"{p}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    d = read_yaml_file(p, "model", ModelError)
     if not isinstance(d, dict) or d.get("kind") != KIND:
         raise ModelError(f"{p}: not a trackcli model file (expected kind: {KIND})")
     if d.get("format") != FORMAT:

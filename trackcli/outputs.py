@@ -56,3 +56,25 @@ def ensure_dir(path: str | Path) -> Path:
     if not path.is_dir():
         raise InputError(f"{path}: exists and is not a folder")
     return path
+
+
+def read_yaml_file(path: str | Path, what: str, error: type[Exception]):
+    """Parse the YAML file ``path`` (a ``what`` file, for messages), raising ``error`` with one line.
+
+    Missing file: ``PATH: no such WHAT file``; bad YAML: ``PATH line N: not valid YAML (problem)``;
+    unreadable: ``PATH: cannot read WHAT file (reason)``.
+    """
+    import yaml
+
+    p = Path(path)
+    if not p.is_file():
+        raise error(f"{p}: no such {what} file")
+    try:
+        return yaml.safe_load(p.read_text(encoding="utf-8"))
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" line {mark.line + 1}" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise error(f"{p}{where}: not valid YAML ({problem})") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise error(f"{p}: cannot read {what} file ({exc})") from None

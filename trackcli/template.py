@@ -28,7 +28,7 @@ import numpy as np
 import yaml
 
 from .errors import TemplateError
-from .outputs import write_text
+from .outputs import read_yaml_file, write_text
 
 FORMAT = 1
 KIND = "trackcli-template"
@@ -152,10 +152,5 @@ def save_template(path: str | Path, template: Template) -> Path:
 def load_template(path: str | Path) -> Template:
     """Read and validate a template file."""
     p = Path(path)
-    if not p.is_file():
-        raise TemplateError(f"{p}: no such template file")
-    try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise TemplateError(f"{p}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    data = read_yaml_file(p, "template", TemplateError)
     return Template.from_dict(data, where=str(p))
