@@ -353,6 +353,7 @@ def step(
     n_out: int | None = None,
     scheme: str = "multinomial",
     ess_threshold: float | None = None,
+    propose: Callable[[np.ndarray, np.random.Generator], tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> tuple[ParticleSet, StepInfo]:
     """One CONDENSATION time-step: select, predict, weight (AC Fig 12.6).
 
@@ -377,6 +378,12 @@ def step(
         When given, select by weight only if ``ESS / N < ess_threshold`` (or the set size
         changes); otherwise the samples keep their weights and are all propagated.  ``None``
         selects every step, as in the papers.
+    propose : callable, optional
+        Importance sampling (ICONDENSATION): ``propose(predicted, rng)`` may replace some of
+        the predicted shapes by draws from another proposal and returns ``(shapes,
+        log_correction)``; ``log_correction`` (n,) is added to every log-weight, i.e. the
+        log of prior density over proposal density that keeps the weighted set a fair
+        sample of the posterior.
 
     Returns
     -------
@@ -406,6 +413,9 @@ def step(
         prev, cur, base = particles.prev, particles.cur, log_w
 
     new = predict(prev, cur, dynamics, rng)
+    if propose is not None:
+        new, correction = propose(new, rng)
+        base = base + np.asarray(correction, dtype=np.float64)
     ll = np.empty(n_out)
     for b0 in range(0, n_out, LOGLIK_BLOCK):
         block = new[b0 : b0 + LOGLIK_BLOCK]

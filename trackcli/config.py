@@ -119,7 +119,9 @@ class MeasurementSettings:
     smoothing: float = _f(1.0, "float", "Gaussian pre-smoothing of the image, sigma in px (0 = none)", lo=0, hi=20)
     edge_sigma: float = _f(1.5, "float", "width of the derivative-of-Gaussian edge operator along normals, px", lo=0.3, hi=10)
     threshold: float = _f(8.0, "float", "contrast threshold, grey levels per px", lo=0)
-    polarity: str = _f("any", "str", "edge polarity accepted, relative to the outward normal", choices=("any", "light_to_dark", "dark_to_light"))
+    polarity: str = _f("any", "str", "edge polarity accepted, relative to the outward normal (the discriminant learns it per normal instead)", choices=("any", "light_to_dark", "dark_to_light"))
+    presence_centre: float = _f(0.3, "float", "presence score (evidence per normal, trackcli.observe) at which the confidence is 0.5", lo=-10, hi=10)
+    lost_below: float = _f(0.5, "float", "a frame is reported lost when its confidence is below this", lo=0, hi=1)
 
 
 @dataclass(frozen=True)
@@ -135,17 +137,22 @@ class KalmanSettings:
 class SubspaceDynamics:
     f: float = _f(0.0, "float", "oscillation frequency, Hz", lo=0)
     beta: float = _f(2.0, "float", "damping rate, 1/s (0 with f = 0: constant velocity)", lo=0)
-    rho: float | None = _f(500.0, "float", "steady-state RMS displacement, px (AC eq 9.26)", lo=0, lo_open=True, nullable=True)
-    gamma0: float | None = _f(None, "float", "constant-velocity noise, px/s^1.5 (AC eq 9.28); used when f = beta = 0", lo=0, lo_open=True, nullable=True)
+    rho: float | None = _f(500.0, "float", "steady-state RMS displacement (AC eq 9.26), in dynamics.units; null with f = 0 and gamma0: damped velocity, free position", lo=0, lo_open=True, nullable=True)
+    gamma0: float | None = _f(None, "float", "noise growth rate, in dynamics.units per s^1.5 (AC eq 9.28); used when f = beta = 0 (constant velocity) or rho is null (damped velocity)", lo=0, lo_open=True, nullable=True)
+
+
+def _translation_default() -> SubspaceDynamics:
+    return SubspaceDynamics(f=0.0, beta=4.0, rho=None, gamma0=5.0)
 
 
 def _deformation_default() -> SubspaceDynamics:
-    return SubspaceDynamics(f=0.0, beta=2.0, rho=15.0)
+    return SubspaceDynamics(f=0.0, beta=2.0, rho=0.05)
 
 
 @dataclass(frozen=True)
 class DynamicsSettings:
-    translation: SubspaceDynamics = _section(SubspaceDynamics, "hand-set dynamics of translation")
+    units: str = _f("object", "str", "unit of rho and gamma0: 'object' = the template's size (square root of its area), 'px' = pixels", choices=("object", "px"))
+    translation: SubspaceDynamics = field(default_factory=_translation_default, metadata={"doc": "hand-set dynamics of translation"})
     deformation: SubspaceDynamics = field(default_factory=_deformation_default, metadata={"doc": "hand-set dynamics of the rest of shape-space"})
 
 
@@ -156,7 +163,11 @@ class CondensationSettings:
     schedule_frames: int = _f(4, "int", "frames over which N falls from initial_particles to particles", lo=1)
     resampling: str = _f("multinomial", "str", "selection scheme", choices=("multinomial", "systematic", "stratified"))
     ess_threshold: float | None = _f(None, "float", "resample only when ESS/N falls below this ratio; null = every frame", lo=0, lo_open=True, hi=1, nullable=True)
-    likelihood: str = _f("clutter", "str", "observation model: clutter (AC eq 12.2) or truncated (Isard & Blake 1996 eqs 10-11)", choices=("clutter", "truncated"))
+    likelihood: str = _f("discriminant", "str", "observation model: discriminant (edges and colour learned on the first frame, trackcli.observe), clutter (AC eq 12.2) or truncated (Isard & Blake 1996 eqs 10-11)", choices=("discriminant", "clutter", "truncated"))
+    miss_probability: float = _f(0.1, "float", "discriminant: probability q that the boundary is not detected on a normal", lo=0, lo_open=True, hi=1)
+    colour_weight: float = _f(1.0, "float", "discriminant: weight w_c of the colour term against the edge term", lo=0, hi=100)
+    reacquire: bool = _f(True, "bool", "when lost, draw a share of the samples from the colour map of the whole frame (importance sampling)")
+    reacquire_fraction: float = _f(0.25, "float", "share of the samples drawn from the colour proposal while lost", lo=0, lo_open=True, hi=1)
     search: float = _f(15.0, "float", "fixed search half-width h along each normal, px (truncated: also the penalty h^2)", lo=1, hi=200)
     sigma: float = _f(3.0, "float", "feature position noise sigma, px", lo=0, lo_open=True)
     alpha: float = _f(0.02, "float", "clutter density alpha, features per px (clutter model only)", lo=0, lo_open=True)

@@ -201,7 +201,38 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
         outline = _resample_polygon(outline, max(4 * n_ctrl, 64), closed)
     Q = fit(outline, n_ctrl, degree=degree, closed=closed)
     cp = np.column_stack([Q[:n_ctrl], Q[n_ctrl:]])
-    return Template(cp, degree=degree, closed=closed, clip=clip, frame=frame, frame_size=frame_size, source=source)
+    template = Template(cp, degree=degree, closed=closed, clip=clip, frame=frame, frame_size=frame_size, source=source)
+    if closed and len(outline) >= 3:
+        import cv2
+
+        size = float(np.sqrt(abs(cv2.contourArea(outline.astype(np.float32)))))
+        err = fit_error(template, outline)
+        if err > max(3.0, 0.1 * size):
+            # A deep, narrow concavity (a swan's neck, an arm held out) that n_ctrl control
+            # points cannot follow can throw the least-squares fit far off the outline; the
+            # convex hull is smooth, always fits, and is what a contour of this many control
+            # points can track.
+            hull = cv2.convexHull(outline.astype(np.float32))[:, 0, :].astype(float)
+            hull = _resample_polygon(canonical_start(hull), max(8 * n_ctrl, 128), True)
+            Q = fit(hull, n_ctrl, degree=degree, closed=True)
+            cp = np.column_stack([Q[:n_ctrl], Q[n_ctrl:]])
+            hull_t = Template(cp, degree=degree, closed=closed, clip=clip, frame=frame, frame_size=frame_size,
+                              source=source + " (convex hull)")
+            log.warning("the outline has detail %d control points cannot follow (fit %.0f px off it); "
+                        "using its convex hull (more control points: --n-ctrl)", n_ctrl, err)
+            template = hull_t
+    return template
+
+
+def fit_error(template, outline: np.ndarray) -> float:
+    """Largest distance (px) from the template's curve to the closed polygon ``outline``."""
+    import cv2
+
+    from .spline import dense_polygon
+
+    poly = dense_polygon(template.Q, template.basis())
+    contour = np.asarray(outline, dtype=np.float32).reshape(-1, 1, 2)
+    return max(abs(cv2.pointPolygonTest(contour, (float(x), float(y)), True)) for x, y in poly)
 
 
 def canonical_start(outline: np.ndarray) -> np.ndarray:

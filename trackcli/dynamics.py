@@ -544,6 +544,12 @@ def oscillator_coefficients(f: float, beta: float, rho: float | None, tau: float
     grows as ``(gamma0/√3) t^{3/2}``: the book's ``ρ(t) = gamma0 t^{3/2}`` up to that
     constant factor.
 
+    With ``f = 0``, ``beta > 0``, ``rho = None`` and ``gamma0`` given, the model is a
+    *damped velocity* with a free position: ``a1 = 1 + exp(-βτ)``, ``a2 = -exp(-βτ)``
+    (eigenvalues 1 and ``exp(-βτ)``), ``b0 = gamma0 τ^{3/2}``.  The velocity forgets itself
+    at the rate ``beta`` and the position has no steady state and no preferred place — the
+    right prior for the translation of an object that may roam anywhere in the frame.
+
     Parameters
     ----------
     f : float
@@ -582,8 +588,18 @@ def oscillator_coefficients(f: float, beta: float, rho: float | None, tau: float
         if g < 0:
             raise ConfigError(f"gamma0 must be >= 0, got {g}")
         return 2.0, -1.0, g * tau**1.5
+    if rho is None and gamma0 is not None and f == 0:
+        # Damped velocity, free position: eigenvalues 1 and exp(-βτ), so
+        # X_k - X_{k-1} = exp(-βτ) (X_{k-1} - X_{k-2}) + b0 w_k, with b0 = gamma0 τ^{3/2}
+        # as in the constant-velocity case (AC eq 9.28), which this becomes as β → 0.
+        g = _number("gamma0", gamma0)
+        if g < 0:
+            raise ConfigError(f"gamma0 must be >= 0, got {g}")
+        decay = math.exp(-beta * tau)
+        return 1.0 + decay, -decay, g * tau**1.5
     if rho is None:
-        raise ConfigError(f"rho (steady-state RMS displacement) is required for a damped oscillator (beta = {beta})")
+        raise ConfigError(f"rho (steady-state RMS displacement) is required for a damped oscillator (beta = {beta}); "
+                          "or give gamma0 with f = 0 and rho null for a damped velocity with a free position")
     r = _number("rho", rho)
     if r < 0:
         raise ConfigError(f"rho must be >= 0, got {r}")

@@ -314,8 +314,9 @@ def _profile_offsets(half: int) -> np.ndarray:
 
 
 def _scan_chunks(
-    img: np.ndarray, pts: np.ndarray, nrm: np.ndarray, limit: float | np.ndarray, threshold: float, sign: int
-) -> Iterator[tuple[int, int, np.ndarray, np.ndarray, np.ndarray]]:
+    img: np.ndarray, pts: np.ndarray, nrm: np.ndarray, limit: float | np.ndarray, threshold: float, sign: int,
+    with_sign: bool = False,
+) -> Iterator[tuple]:
     """Find the features on K normals, a chunk of normals at a time.
 
     Parameters
@@ -338,6 +339,9 @@ def _scan_chunks(
         Sub-pixel offset, ``|nu| <= limit``; ordered along each normal.
     strength : ndarray of shape (F,), float32
         Parabola-interpolated response at the maximum.
+    polarity : ndarray of shape (F,), float32
+        Only with ``with_sign``: the sign of ``D`` at the maximum (+1 dark-to-light, -1
+        light-to-dark along the normal).
     """
     k_total = pts.shape[0]
     if k_total == 0:
@@ -378,7 +382,12 @@ def _scan_chunks(
         x = p[r, 0] + nu * n[r, 0]
         y = p[r, 1] + nu * n[r, 1]
         keep &= (x >= 0) & (x <= x_max) & (y >= 0) & (y <= y_max)
-        yield k0, k1, r[keep], nu[keep], (a1 - 0.25 * (a0 - a2) * off)[keep]
+        strength = (a1 - 0.25 * (a0 - a2) * off)[keep]
+        if with_sign:
+            # the sign of D at the maximum: +1 dark-to-light, -1 light-to-dark along the normal
+            yield k0, k1, r[keep], nu[keep], strength, np.sign(d[:, 1:-1].reshape(-1)[r * width + j][keep])
+        else:
+            yield k0, k1, r[keep], nu[keep], strength
 
 
 def _scan(

@@ -372,7 +372,8 @@ def track_clip(
         space, dynamics, X0 = setup.space, setup.dynamics, setup.X0
         if tracker == "kalman":
             def make(frames: Iterable[Any]) -> Iterator[Any]:
-                return tracking.track_kalman(frames, space, dynamics, settings.measurement, settings.kalman, X0=X0)
+                return tracking.track_kalman(frames, space, dynamics, settings.measurement, settings.kalman, X0=X0,
+                                             observation=settings.condensation)
         else:
             rng = np.random.default_rng(settings.seed)
 

@@ -19,16 +19,12 @@ from typing import Any, Iterable, Iterator
 import numpy as np
 
 from . import condensation as cond
-from . import kalman, measure
+from . import kalman, measure, observe
 from .config import CondensationSettings, DynamicsSettings, KalmanSettings, MeasurementSettings, SubspaceDynamics
 from .dynamics import AR2, SubspaceModel, partitioned
 from .errors import ConfigError
 from .shape_space import ShapeSpace
 from .spline import CurveSampler, curve_area_centroid, dense_polygon
-
-#: A frame is reported lost by the Kalman tracker when fewer than this fraction of normals found a feature.
-KALMAN_LOST_FRACTION = 0.3
-
 
 @dataclass(frozen=True, eq=False)
 class FrameResult:
@@ -59,7 +55,13 @@ class FrameResult:
     loglik : float
         Log-likelihood of the estimated curve under the clutter model (AC eq 12.2; NaN for Kalman).
     lost : bool
-        Tracker's own verdict that it has no lock.
+        Tracker's own verdict that it has no lock: ``confidence`` below
+        ``measurement.lost_below``.
+    confidence : float
+        Confidence in [0, 1] that the estimate is on the object (:class:`Presence`).
+    log_d : float
+        Log of the contour discriminant ``D`` of the estimated curve (``> 0``: more
+        object-like than clutter; :mod:`trackcli.observe`).
     display : dict
         Extra arrays for recordings (measurement points, gate ends, features, particles, histogram).
     """
@@ -77,6 +79,8 @@ class FrameResult:
     ess: float = math.nan
     loglik: float = math.nan
     lost: bool = False
+    confidence: float = math.nan
+    log_d: float = math.nan
     display: dict[str, Any] = field(default_factory=dict)
 
 
@@ -90,11 +94,28 @@ def measurement_sampler(space: ShapeSpace, n_normals: int) -> CurveSampler:
     return basis.sampler(basis.measurement_params(n_normals))
 
 
-def _subspace_part(space: ShapeSpace, E: np.ndarray, s: SubspaceDynamics, tau: float, what: str) -> SubspaceModel:
+def _subspace_part(space: ShapeSpace, E: np.ndarray, s: SubspaceDynamics, tau: float, what: str,
+                   unit: float) -> SubspaceModel:
+    rho = None if s.rho is None else s.rho * unit
+    gamma0 = None if s.gamma0 is None else s.gamma0 * unit
     try:
-        return SubspaceModel.oscillator(E, s.f, s.beta, s.rho, tau, gamma0=s.gamma0)
+        return SubspaceModel.oscillator(E, s.f, s.beta, rho, tau, gamma0=gamma0)
     except ConfigError as exc:
         raise ConfigError(f"dynamics.{what}: {exc}") from None
+
+
+def object_size(space: ShapeSpace) -> float:
+    """The size of the template of ``space``: the square root of the area it encloses, px.
+
+    For an open curve, the RMS distance of its control points from their mean.
+    """
+    Q0 = space.Q0
+    if space.basis.closed:
+        area, _ = curve_area_centroid(Q0, space.basis)
+        return float(math.sqrt(abs(area)))
+    n = space.Nq
+    pts = np.column_stack([Q0[:n], Q0[n:]])
+    return float(np.sqrt(((pts - pts.mean(axis=0)) ** 2).sum(axis=1).mean()))
 
 
 def handset_dynamics(space: ShapeSpace, settings: DynamicsSettings, tau: float) -> AR2:
@@ -102,12 +123,19 @@ def handset_dynamics(space: ShapeSpace, settings: DynamicsSettings, tau: float) 
 
     The translation subspace gets ``settings.translation``; its H-orthogonal complement
     (rotation, scale and other deformation) gets ``settings.deformation``.  The mean shape is
-    the template (``X̄ = 0``).
+    the template (``X̄ = 0``), so a damped deformation returns to the template's shape and
+    size: scale and rotation cannot drift without bound.
+
+    With ``settings.units = "object"`` the steady-state RMS displacements ``rho`` (and
+    ``gamma0``) are in units of the template's size (:func:`object_size`), so the same
+    settings describe a small and a large object alike; the damping ``beta`` (1/s) and
+    frequency ``f`` (Hz) are converted per frame with the clip's frame interval ``tau``.
     """
+    unit = object_size(space) if settings.units == "object" else 1.0
     Es = space.translation_projector()
-    parts = [_subspace_part(space, Es, settings.translation, tau, "translation")]
+    parts = [_subspace_part(space, Es, settings.translation, tau, "translation", unit)]
     if space.Nx > 2:
-        parts.append(_subspace_part(space, np.eye(space.Nx) - Es, settings.deformation, tau, "deformation"))
+        parts.append(_subspace_part(space, np.eye(space.Nx) - Es, settings.deformation, tau, "deformation", unit))
     return partitioned(space.H, parts, np.zeros(space.Nx), tau)
 
 
@@ -129,6 +157,51 @@ def _feature_image(image: np.ndarray, m: MeasurementSettings) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------
+# The verdict: is the estimate on the object?
+
+
+@dataclass(frozen=True, eq=False)
+class Presence:
+    """The observation model of :mod:`trackcli.observe`, set up for one clip.
+
+    Learned from the template on the first frame; gives the discriminant log-likelihood of
+    hypothesised curves (CONDENSATION's default) and, for both trackers, the per-frame
+    confidence and ``lost`` verdict.
+    """
+
+    app: observe.Appearance
+    h: float
+    sigma: float
+    threshold: float
+    miss: float
+    colour_weight: float
+    centre: float
+
+    @classmethod
+    def learn(cls, image: np.ndarray, fimg: np.ndarray, space: ShapeSpace, sampler: CurveSampler, X0: np.ndarray,
+              measurement: MeasurementSettings, settings: CondensationSettings) -> Presence:
+        pts, nrm = space.points_normals(X0, sampler)
+        poly, _, _ = contour_summary(space, X0)
+        app = observe.learn_appearance(image, fimg, pts, nrm, poly, h=settings.search, sigma=settings.sigma,
+                                       threshold=measurement.threshold)
+        return cls(app, settings.search, settings.sigma, measurement.threshold, settings.miss_probability,
+                   settings.colour_weight, measurement.presence_centre)
+
+    def evidence(self, image: np.ndarray, fimg: np.ndarray, centre: np.ndarray) -> observe.FrameEvidence:
+        return observe.evidence(self.app, image, fimg, centre, self.threshold)
+
+    def score(self, ev: observe.FrameEvidence, pts: np.ndarray, nrm: np.ndarray) -> np.ndarray:
+        return observe.score(self.app, ev, pts, nrm, h=self.h, sigma=self.sigma, threshold=self.threshold,
+                             miss=self.miss, colour_weight=self.colour_weight)
+
+    def confidence(self, ev: observe.FrameEvidence, pts: np.ndarray, nrm: np.ndarray, spread: float) -> tuple[float, float]:
+        """``(confidence, log D)`` of one curve, ``spread`` its positional spread in object sizes."""
+        s, e, _ = observe.presence(self.app, ev, pts, nrm, h=self.h, sigma=self.sigma, threshold=self.threshold,
+                                   miss=self.miss, colour_weight=self.colour_weight)
+        return observe.confidence(s, spread, centre=self.centre), e * pts.shape[0]
+
+
+# ---------------------------------------------------------------------------------------------
 # Kalman contour tracker (AC Fig 10.3)
 
 
@@ -145,6 +218,7 @@ def track_kalman(
     settings: KalmanSettings,
     *,
     X0: np.ndarray | None = None,
+    observation: CondensationSettings | None = None,
 ) -> Iterator[FrameResult]:
     """Run the second-order Kalman contour tracker over ``frames``.
 
@@ -162,7 +236,13 @@ def track_kalman(
     Initial conditions (AC §10.1): ``settings.init = "static"`` starts at ``X0`` with the
     closed-loop steady-state covariance of a full set of measurements on that curve;
     ``"unknown"`` starts from the open-loop steady state of the dynamics.
+
+    The confidence and ``lost`` verdict of every frame come from the discriminant of
+    :class:`Presence` (settings of ``observation``, default CONDENSATION settings) applied to
+    the estimated curve, learned from the template on the first frame.
     """
+    observation = observation or CondensationSettings()
+    judge: Presence | None = None
     M = measurement.n_normals
     sampler = measurement_sampler(space, M)
     sigma = kalman_sigma(settings.rho_f, M, space.Nx)
@@ -182,6 +262,8 @@ def track_kalman(
         h = space.measurement_vectors(Xp, sampler, nrm)
         gates = np.clip(settings.kappa * kalman.gate_rho(predicted, h), settings.min_gate, settings.max_gate)
         fimg = _feature_image(frame.image, measurement)
+        if judge is None:
+            judge = Presence.learn(frame.image, fimg, space, sampler, X0, measurement, observation)
         feats = measure.kalman_features(fimg, pts, nrm, gates, threshold=measurement.threshold,
                                         polarity=measurement.polarity, max_half_width=settings.max_gate)
         Z, S = measure.aggregate(h, feats.nu, feats.found, sigma)
@@ -189,10 +271,15 @@ def track_kalman(
         X = state.X
         contour, centroid, bbox = contour_summary(space, X)
         n_found = int(feats.found.sum())
+        est_pts, est_nrm = space.points_normals(X, sampler)
+        ev = judge.evidence(frame.image, fimg, centroid)
+        spread = float(np.hypot(state.X_std[0], state.X_std[1])) / judge.app.size
+        conf, log_d = judge.confidence(ev, est_pts, est_nrm, spread)
         yield FrameResult(
             index=int(frame.index), time=float(frame.time), X=X.copy(), X_std=state.X_std.copy(),
             contour=contour, centroid=centroid, bbox=bbox, n_found=n_found, n_normals=M,
-            gate_rms=float(np.sqrt(np.mean(gates**2))), lost=n_found < KALMAN_LOST_FRACTION * M,
+            gate_rms=float(np.sqrt(np.mean(gates**2))), lost=conf < measurement.lost_below,
+            confidence=conf, log_d=log_d,
             display={
                 "points": pts,
                 "gate_inner": pts - gates[:, None] * nrm,
@@ -262,6 +349,9 @@ def track_condensation(
     else:
         particles = cond.init_steady_state(dynamics, n0, rng)
     edges = None
+    judge: Presence | None = None
+    centre = space.origin + X0[:2]
+    lost_prev = False
     k = 0
     for frame in frames:
         fimg = _feature_image(frame.image, measurement)
@@ -271,6 +361,9 @@ def track_condensation(
                 ox = float(space.origin[0])
                 hist_range = (-ox, w - ox)
             edges = np.linspace(hist_range[0], hist_range[1], settings.histogram_bins + 1)
+        if judge is None:
+            judge = Presence.learn(frame.image, fimg, space, sampler, X0, measurement, settings)
+        ev = judge.evidence(frame.image, fimg, centre)
 
         def loglik(X: np.ndarray) -> np.ndarray:
             pts, nrm = space.points_normals(X, sampler)
@@ -278,16 +371,25 @@ def track_condensation(
                 return measure.truncated_log_likelihood(fimg, pts, nrm, h=settings.search, sigma=settings.sigma,
                                                         threshold=measurement.threshold,
                                                         polarity=measurement.polarity)
-            return measure.log_likelihood(fimg, pts, nrm, h=settings.search, sigma=settings.sigma,
-                                          alpha=settings.alpha, threshold=measurement.threshold,
-                                          polarity=measurement.polarity)
+            if settings.likelihood == "clutter":
+                return measure.log_likelihood(fimg, pts, nrm, h=settings.search, sigma=settings.sigma,
+                                              alpha=settings.alpha, threshold=measurement.threshold,
+                                              polarity=measurement.polarity)
+            return judge.score(ev, pts, nrm)
 
         if k == 0:
             particles = cond.ParticleSet(particles.prev, particles.cur, loglik(particles.cur))
             ess = particles.ess
         else:
+            propose = None
+            if lost_prev and settings.reacquire:
+                peaks, strengths = observe.colour_peaks(ev.cmap, judge.app.size)
+                propose = observe.reacquisition_proposal(
+                    peaks, strengths, space.origin, judge.app.size, (frame.image.shape[1], frame.image.shape[0]),
+                    fraction=settings.reacquire_fraction)
             particles, info = cond.step(particles, dynamics, loglik, rng, n_out=schedule(k),
-                                        scheme=settings.resampling, ess_threshold=settings.ess_threshold)
+                                        scheme=settings.resampling, ess_threshold=settings.ess_threshold,
+                                        propose=propose)
             ess = info.ess
         k += 1
         w = particles.weights
@@ -298,6 +400,11 @@ def track_condensation(
         contour, centroid, bbox = contour_summary(space, X)
         pts, nrm = space.points_normals(X, sampler)
         loglik_mean = float(loglik(X[None])[0])
+        spread = float(np.sqrt(X_std[0] ** 2 + X_std[1] ** 2)) / judge.app.size
+        conf, log_d = judge.confidence(ev, pts, nrm, spread)
+        lost_prev = conf < measurement.lost_below
+        if np.isfinite(centroid).all():
+            centre = centroid
         n_found = _normals_with_features(fimg, pts, nrm, settings, measurement)
         hist = cond.weighted_histogram(particles, edges, component=0)
         display: dict[str, Any] = {"points": pts, "histogram": hist, "hist_edges": edges, "best": best}
@@ -310,7 +417,7 @@ def track_condensation(
         yield FrameResult(
             index=int(frame.index), time=float(frame.time), X=X, X_std=X_std, contour=contour,
             centroid=centroid, bbox=bbox, n_found=n_found, n_normals=M, gate_rms=float(settings.search),
-            ess=float(ess), loglik=loglik_mean, lost=bool(ess < 1.5 and n_found < KALMAN_LOST_FRACTION * M),
+            ess=float(ess), loglik=loglik_mean, lost=bool(lost_prev), confidence=conf, log_d=log_d,
             display=display,
         )
 

@@ -19,9 +19,17 @@ Columns, in order:
 ``ess``
     effective sample size (CONDENSATION; empty for Kalman);
 ``loglik``
-    log-likelihood of the estimated contour under the clutter model (CONDENSATION; empty for Kalman);
+    log-likelihood of the estimated contour under CONDENSATION's observation model (empty for Kalman);
 ``lost``
-    1 when the tracker judges it has lost lock, else 0.
+    1 when the tracker judges it has lost lock (its confidence is below
+    ``measurement.lost_below``), else 0;
+``confidence``
+    the tracker's confidence in [0, 1] that the estimate is on the object, from the evidence
+    per normal of the estimated curve against background (:mod:`trackcli.observe`) and the
+    spread of its position;
+``log_d``
+    log of the contour discriminant of the estimated curve (> 0: more object-like than
+    clutter).
 
 Files are written atomically: a run that stops early leaves no half-written CSV.
 """
@@ -38,7 +46,7 @@ import numpy as np
 from .errors import InputError
 from .outputs import atomic_path
 
-FIXED_AFTER = ["cx", "cy", "bbox_x", "bbox_y", "bbox_w", "bbox_h", "n_found", "n_normals", "gate_rms", "ess", "loglik", "lost"]
+FIXED_AFTER = ["cx", "cy", "bbox_x", "bbox_y", "bbox_w", "bbox_h", "n_found", "n_normals", "gate_rms", "ess", "loglik", "lost", "confidence", "log_d"]
 
 
 def header(names: Sequence[str]) -> list[str]:
@@ -60,7 +68,8 @@ def row(result, ) -> list[str]:
     cells += [_fmt(float(result.centroid[0]), 3), _fmt(float(result.centroid[1]), 3)]
     cells += [_fmt(float(v), 3) for v in result.bbox]
     cells += [str(result.n_found), str(result.n_normals), _fmt(result.gate_rms, 4), _fmt(result.ess, 6),
-              _fmt(result.loglik, 6), "1" if result.lost else "0"]
+              _fmt(result.loglik, 6), "1" if result.lost else "0",
+              _fmt(float(getattr(result, "confidence", math.nan)), 4), _fmt(float(getattr(result, "log_d", math.nan)), 5)]
     return cells
 
 

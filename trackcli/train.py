@@ -108,7 +108,8 @@ def train(
             base = outdir / f"{stem}.cycle{cycle}"
 
             def make(frames, space=space, dynamics=dynamics):
-                return track_kalman(frames, space, dynamics, settings.measurement, settings.kalman)
+                return track_kalman(frames, space, dynamics, settings.measurement, settings.kalman,
+                                    observation=settings.condensation)
 
             label = f"cycle {cycle}: {stem}"
             ctx = progress(label, len(video)) if progress else _NullBar()

@@ -1,0 +1,287 @@
+"""Tracking quality on a fixed dev set: the command line, defaults, templates from the frame-0 box.
+
+For every clip of the dev set this script does what a new user does::
+
+    trackcli draw CLIP --box X,Y,W,H -o T.yaml          # the frame-0 box of the ground truth
+    trackcli track --template T.yaml CLIP -o OUT --json  # default settings, CONDENSATION
+
+and scores the track CSV against the ground truth with :mod:`trackcli.evaluate`: precision at
+20 px (OTB convention: the estimate's box centre within 20 px of the truth's; centroids for the
+synthetic clips, whose truth has them), precision at 10 px, success AUC (mean over IoU
+thresholds 0, 0.05, ..., 1 of the fraction of frames with IoU above the threshold) and the
+frames the tracker itself reported lost.  The truthfulness of that verdict is shown as two
+counts: frames flagged lost among frames whose centre error is > 20 px ("flag|bad") and among
+frames whose error is < 5 px ("flag|good"; should be near 0).
+
+The dev set:
+
+- the synthetic sample clips regenerated with ``trackcli sample-data --seed S`` for each seed
+  of ``--seeds`` (the cluttered ``test`` clip, the walker of ``three_heads``), cached in
+  ``--cache``;
+- every folder of ``--footage`` (default ``../shared/footage`` beside the repository, when
+  present) holding ``img/`` frames and ``groundtruth_rect.txt``.
+
+With ``--peers`` the same clips are tracked by OpenCV's CSRT, KCF and MIL from the same box
+(CSRT and KCF need ``opencv-contrib-python-headless``; MIL is in the plain wheel).  Peer
+results do not depend on trackcli and are cached.
+
+Usage::
+
+    python bench/quality.py [--seeds 1,2,3] [--footage DIR] [--peers] [--only NAME ...]
+        [--json FILE] [-- EXTRA TRACK OPTIONS]
+
+Everything after ``--`` is passed to ``trackcli track`` (e.g. ``-- --particles 1000``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+
+from trackcli.evaluate import load_track, load_truth, score_frames, summarise  # noqa: E402
+
+DEFAULT_FOOTAGE = REPO.parent / "shared" / "footage"
+DEFAULT_CACHE = REPO / "bench" / ".cache"
+
+
+@dataclass(frozen=True)
+class Clip:
+    name: str
+    kind: str  # "synthetic" or "real"
+    path: Path
+    truth: Path
+    box: tuple[float, float, float, float]
+    object_id: int = 0
+
+
+def _cli(*args: str, timeout: float = 1800) -> subprocess.CompletedProcess:
+    env = dict(os.environ, CI="true")
+    return subprocess.run([sys.executable, "-m", "trackcli.cli", "-q", *args], capture_output=True,
+                          text=True, env=env, timeout=timeout, cwd=REPO)
+
+
+def synthetic_clips(seeds: list[int], cache: Path) -> list[Clip]:
+    clips = []
+    for seed in seeds:
+        folder = cache / f"sample-{seed}"
+        need = [c for c in ("test", "three_heads") if not (folder / f"{c}.truth.csv").is_file()]
+        if need:
+            args = ["sample-data", str(folder), "--seed", str(seed)]
+            for c in need:
+                args += ["--clip", c]
+            r = _cli(*args)
+            if r.returncode:
+                raise SystemExit(f"sample-data --seed {seed} failed: {r.stderr.strip()}")
+        for clip, obj in (("test", 0), ("three_heads", 2)):
+            truth = folder / f"{clip}.truth.csv"
+            gt = load_truth(truth, object_id=obj)
+            x, y, w, h = (float(v) for v in gt.box[0])
+            clips.append(Clip(f"{clip}@{seed}", "synthetic", folder / f"{clip}.mp4", truth, (x, y, w, h), obj))
+    return clips
+
+
+def footage_clips(footage: Path) -> list[Clip]:
+    clips = []
+    if not footage.is_dir():
+        return clips
+    for folder in sorted(p for p in footage.iterdir() if p.is_dir()):
+        truth = folder / "groundtruth_rect.txt"
+        if not (truth.is_file() and (folder / "img").is_dir()):
+            continue
+        gt = load_truth(truth)
+        x, y, w, h = (float(v) for v in gt.box[0])
+        clips.append(Clip(folder.name, "real", folder, truth, (x, y, w, h)))
+    return clips
+
+
+def score(csv: Path, clip: Clip) -> dict:
+    truth = load_truth(clip.truth, object_id=clip.object_id)
+    track = load_track(csv)
+    frames = score_frames(track, truth)
+    s20 = summarise(frames, threshold=20.0)
+    s10 = summarise(frames, threshold=10.0)
+    err = frames.centre_error
+    lost_flag = _lost_flags(csv, frames.frame)
+    bad = err > 20
+    good = err < 5
+    return {
+        "p20": s20.precision, "p10": s10.precision, "auc": s20.success_auc,
+        "err_mean": s20.centre_error_mean, "frames": int(frames.frame.size),
+        "lost": int(lost_flag.sum()), "bad": int(bad.sum()), "good": int(good.sum()),
+        "lost_bad": int((lost_flag & bad).sum()), "lost_good": int((lost_flag & good).sum()),
+    }
+
+
+def _lost_flags(csv: Path, frames: np.ndarray) -> np.ndarray:
+    import csv as csvmod
+
+    with open(csv, newline="") as f:
+        rows = list(csvmod.DictReader(f))
+    flag = {int(r["frame"]): r.get("lost", "0") in ("1", "True", "true") for r in rows}
+    return np.array([flag.get(int(k), True) for k in frames], dtype=bool)
+
+
+def run_trackcli(clip: Clip, work: Path, extra: list[str]) -> tuple[dict, float]:
+    tmpl = work / f"{clip.name}.template.yaml"
+    box = ",".join(f"{v:.2f}" for v in clip.box)
+    r = _cli("draw", str(clip.path), "--box", box, "-o", str(tmpl), "--preview", str(work / f"{clip.name}.png"))
+    if r.returncode:
+        return {"error": "draw: " + r.stderr.strip().splitlines()[-1]}, 0.0
+    out = work / clip.name
+    t0 = time.perf_counter()
+    r = _cli("track", "--template", str(tmpl), str(clip.path), "-o", str(out), "--no-rrd", "--json", *extra)
+    wall = time.perf_counter() - t0
+    if r.returncode:
+        return {"error": "track: " + (r.stderr.strip().splitlines() or ["?"])[-1]}, wall
+    csvs = sorted(out.glob("*.condensation.csv")) or sorted(out.glob("*.csv"))
+    return score(csvs[0], clip), wall
+
+
+# ---------------------------------------------------------------------------------------------
+# OpenCV's trackers
+
+
+PEERS = ("CSRT", "KCF", "MIL")
+
+
+def _peer_factory(name: str):
+    import cv2
+
+    for where in (cv2, getattr(cv2, "legacy", None)):
+        f = getattr(where, f"Tracker{name}_create", None) if where is not None else None
+        if f is not None:
+            return f
+    return None
+
+
+def run_peer(name: str, clip: Clip, work: Path) -> dict | None:
+    import cv2
+
+    from trackcli.video import open_video
+
+    factory = _peer_factory(name)
+    if factory is None:
+        return None
+    rows = ["frame,time,cx,cy,bbox_x,bbox_y,bbox_w,bbox_h,lost"]
+    tracker = None
+    with open_video(clip.path) as video:
+        for frame in video:
+            if tracker is None:
+                tracker = factory()
+                hgt, wid = frame.image.shape[:2]
+                x0, y0 = max(0.0, clip.box[0]), max(0.0, clip.box[1])
+                x1 = min(float(wid - 1), clip.box[0] + clip.box[2])
+                y1 = min(float(hgt - 1), clip.box[1] + clip.box[3])
+                box = tuple(int(round(v)) for v in (x0, y0, x1 - x0, y1 - y0))
+                try:
+                    tracker.init(frame.image, box)
+                except cv2.error:
+                    return None
+                ok, b = True, box
+            else:
+                ok, b = tracker.update(frame.image)
+            x, y, w, h = (float(v) for v in b)
+            rows.append(f"{frame.index},{frame.time},{x + w / 2},{y + h / 2},{x},{y},{w},{h},{0 if ok else 1}")
+    csv = work / f"{clip.name}.{name}.csv"
+    csv.write_text("\n".join(rows) + "\n")
+    return score(csv, clip)
+
+
+def peer_results(clips: list[Clip], cache: Path) -> dict:
+    import cv2
+
+    path = cache / f"peers-{cv2.__version__}.json"
+    done = json.loads(path.read_text()) if path.is_file() else {}
+    work = Path(tempfile.mkdtemp(prefix="peers-"))
+    for clip in clips:
+        for name in PEERS:
+            key = f"{clip.name}:{name}"
+            if key not in done:
+                res = run_peer(name, clip, work)
+                if res is not None:
+                    done[key] = res
+                    path.write_text(json.dumps(done, indent=1))
+    return done
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def _fmt(v, digits=2) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    return f"{v:.{digits}f}"
+
+
+def main() -> None:
+    argv = sys.argv[1:]
+    extra: list[str] = []
+    if "--" in argv:
+        i = argv.index("--")
+        argv, extra = argv[:i], argv[i + 1:]
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--seeds", default="1,2,3,4,5", help="sample-data seeds (comma separated; '' for none)")
+    ap.add_argument("--footage", type=Path, default=DEFAULT_FOOTAGE)
+    ap.add_argument("--cache", type=Path, default=DEFAULT_CACHE)
+    ap.add_argument("--peers", action="store_true", help="also run OpenCV's CSRT, KCF, MIL")
+    ap.add_argument("--only", nargs="*", help="clip names (prefix match)")
+    ap.add_argument("--json", type=Path, help="write all results here")
+    ap.add_argument("--keep", type=Path, help="keep templates and tracks in this folder")
+    args = ap.parse_args(argv)
+
+    seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
+    args.cache.mkdir(parents=True, exist_ok=True)
+    clips = synthetic_clips(seeds, args.cache) + footage_clips(args.footage)
+    if args.only:
+        clips = [c for c in clips if any(c.name.startswith(o) for o in args.only)]
+    peers = peer_results(clips, args.cache) if args.peers else {}
+    work = args.keep or Path(tempfile.mkdtemp(prefix="quality-"))
+    work.mkdir(parents=True, exist_ok=True)
+
+    head = f"{'clip':<22}{'frames':>7}{'P@20':>7}{'P@10':>7}{'AUC':>7}{'err':>8}{'lost':>6}{'flag|bad':>10}{'flag|good':>10}{'s':>7}"
+    peer_head = "".join(f"{n + ' P@20':>10}" for n in PEERS) if peers else ""
+    print(head + peer_head)
+    results = {}
+    for clip in clips:
+        res, wall = run_trackcli(clip, work, extra)
+        results[clip.name] = res
+        if "error" in res:
+            print(f"{clip.name:<22} {res['error']}")
+            continue
+        line = (f"{clip.name:<22}{res['frames']:>7}{_fmt(res['p20']):>7}{_fmt(res['p10']):>7}{_fmt(res['auc']):>7}"
+                f"{_fmt(res['err_mean'], 1):>8}{res['lost']:>6}{res['lost_bad']:>5}/{res['bad']:<4}"
+                f"{res['lost_good']:>5}/{res['good']:<4}{wall:>7.1f}")
+        if peers:
+            line += "".join(f"{_fmt(peers.get(f'{clip.name}:{n}', {}).get('p20')):>10}" for n in PEERS)
+        print(line, flush=True)
+    for kind in ("synthetic", "real"):
+        names = [c.name for c in clips if c.kind == kind and "error" not in results[c.name]]
+        if not names:
+            continue
+        mean = {k: float(np.mean([results[n][k] for n in names])) for k in ("p20", "p10", "auc")}
+        line = (f"{'mean ' + kind:<22}{'':>7}{_fmt(mean['p20']):>7}{_fmt(mean['p10']):>7}{_fmt(mean['auc']):>7}"
+                f"{'':>8}{'':>6}{'':>10}{'':>10}{'':>7}")
+        if peers:
+            for n in PEERS:
+                vals = [peers[f"{c}:{n}"]["p20"] for c in names if f"{c}:{n}" in peers]
+                line += f"{_fmt(float(np.mean(vals)) if vals else None):>10}"
+        print(line)
+    if args.json:
+        args.json.write_text(json.dumps({"trackcli": results, "peers": peers}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
