@@ -51,8 +51,12 @@ def test_defaults_load_without_a_file():
     assert s.measurement.n_normals == 24
     assert s.kalman.rho_f == 1.0
     assert s.condensation.particles == 500
-    assert s.dynamics.translation.rho == 500.0
-    assert s.dynamics.deformation.rho == 15.0  # the deformation section has its own defaults
+    # hand-set dynamics in units of the object: a damped velocity with a free position for
+    # translation, a deformation that returns to the template
+    assert s.dynamics.units == "object"
+    assert s.dynamics.translation.rho is None and s.dynamics.translation.gamma0 == 5.0
+    assert s.dynamics.deformation.rho == 0.05  # the deformation section has its own defaults
+    assert s.condensation.likelihood == "discriminant"
     assert s.video.fps is None and s.video.end is None
 
 
@@ -149,7 +153,7 @@ def test_unknown_key_names_path_and_valid_keys(data, path):
     parent = path.rpartition(".")[0]
     valid = [r[0].rpartition(".")[2] for r in describe_settings() if r[0].rpartition(".")[0] == parent]
     if parent == "dynamics":
-        valid = ["deformation", "translation"]
+        valid = ["deformation", "translation", "units"]
     elif parent == "":
         valid = [f.name for f in dataclasses.fields(Settings)]
     assert re.search(r"\(valid here: (.*)\)$", msg).group(1) == ", ".join(sorted(valid))

@@ -120,7 +120,7 @@ class MeasurementSettings:
     edge_sigma: float = _f(1.5, "float", "width of the derivative-of-Gaussian edge operator along normals, px", lo=0.3, hi=10)
     threshold: float = _f(8.0, "float", "contrast threshold, grey levels per px", lo=0)
     polarity: str = _f("any", "str", "edge polarity accepted, relative to the outward normal (the discriminant learns it per normal instead)", choices=("any", "light_to_dark", "dark_to_light"))
-    presence_centre: float = _f(0.3, "float", "presence score (evidence per normal, trackcli.observe) at which the confidence is 0.5", lo=-10, hi=10)
+    presence_centre: float = _f(0.4, "float", "fraction of the template's presence score on the first frame (evidence per normal, trackcli.observe) at which the confidence is 0.5", lo=0, hi=1)
     lost_below: float = _f(0.5, "float", "a frame is reported lost when its confidence is below this", lo=0, hi=1)
 
 
@@ -168,6 +168,8 @@ class CondensationSettings:
     colour_weight: float = _f(1.0, "float", "discriminant: weight w_c of the colour term against the edge term", lo=0, hi=100)
     reacquire: bool = _f(True, "bool", "when lost, draw a share of the samples from the colour map of the whole frame (importance sampling)")
     reacquire_fraction: float = _f(0.25, "float", "share of the samples drawn from the colour proposal while lost", lo=0, lo_open=True, hi=1)
+    jump_fraction: float = _f(0.1, "float", "share of the samples whose predicted position also jumps (the motion prior is a mixture of smooth motion and abrupt moves: kicks, turns, camera shake)", lo=0, hi=1)
+    jump_size: float = _f(0.3, "float", "RMS size of such a jump, in object sizes (square root of the template's area)", lo=0, hi=10)
     search: float = _f(15.0, "float", "fixed search half-width h along each normal, px (truncated: also the penalty h^2)", lo=1, hi=200)
     sigma: float = _f(3.0, "float", "feature position noise sigma, px", lo=0, lo_open=True)
     alpha: float = _f(0.02, "float", "clutter density alpha, features per px (clutter model only)", lo=0, lo_open=True)

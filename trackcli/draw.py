@@ -207,11 +207,32 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
 
         size = float(np.sqrt(abs(cv2.contourArea(outline.astype(np.float32)))))
         err = fit_error(template, outline)
-        if err > max(3.0, 0.1 * size):
+        tol = max(3.0, 0.1 * size)
+        if err > tol:
+            # Thin parts (a strand of reflection, a tail) can throw the least-squares fit far
+            # off the outline: remove them with an opening about 1/8 of the object's size and
+            # fit again.
+            lo = outline.min(axis=0) - 2
+            hi = outline.max(axis=0) + 2
+            shape = (int(hi[0] - lo[0]) + 1, int(hi[1] - lo[1]) + 1)
+            m = polygon_mask(outline - lo, shape)
+            k = max(3, int(round(size / 8)) | 1)
+            m = cv2.morphologyEx(m, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+            if m.any():
+                opened = canonical_start(mask_outline(m) + lo)
+                Q = fit(opened, n_ctrl, degree=degree, closed=True)
+                cp = np.column_stack([Q[:n_ctrl], Q[n_ctrl:]])
+                smooth_t = Template(cp, degree=degree, closed=closed, clip=clip, frame=frame, frame_size=frame_size,
+                                    source=source + " (thin parts removed)")
+                err_s = fit_error(smooth_t, opened)
+                if err_s <= tol:
+                    log.warning("the outline has thin parts the %d-control-point fit strayed on (%.0f px off); "
+                                "they were removed (%.0f px)", n_ctrl, err, err_s)
+                    return smooth_t
+        if err > tol:
             # A deep, narrow concavity (a swan's neck, an arm held out) that n_ctrl control
-            # points cannot follow can throw the least-squares fit far off the outline; the
-            # convex hull is smooth, always fits, and is what a contour of this many control
-            # points can track.
+            # points cannot follow can also throw the fit off; the convex hull is smooth,
+            # always fits, and is what a contour of this many control points can track.
             hull = cv2.convexHull(outline.astype(np.float32))[:, 0, :].astype(float)
             hull = _resample_polygon(canonical_start(hull), max(8 * n_ctrl, 128), True)
             Q = fit(hull, n_ctrl, degree=degree, closed=True)

@@ -307,21 +307,24 @@ def presence(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np
     return e + colour_weight * col, e, col
 
 
-#: Logistic slope of :func:`confidence` per unit of presence score.
-CONFIDENCE_SLOPE = 4.0
-
-
-def confidence(presence_score: float, spread: float, *, centre: float) -> float:
+def confidence(presence_score: float, spread: float, *, reference: float, centre: float = 0.4) -> float:
     """A per-frame confidence in [0, 1] that the estimate is on the object.
 
-    ``sigmoid(4 (presence_score - centre))`` times a factor for the spread of the estimate's
-    position (``spread`` = RMS spread of the translation in units of the object's size):
-    1 while the spread is below 0.25 object sizes, falling to 0 at 1 size (a sample set
-    spread over the image has not located the object, whatever its mean scores).
+    ``reference`` is the presence score of the template on the frame it starts on: what the
+    object looks like when it is certainly there.  The confidence is a logistic function of
+    the presence score, 0.5 at ``centre * reference`` (but at least 0.05: evidence barely
+    above background is not enough), of width ``max(reference / 4, 0.1)``, times a factor
+    for the spread of the estimate's position (``spread`` = RMS spread of the translation in
+    units of the object's size): 1 while the spread is below 0.25 object sizes, falling to 0
+    at 1 size (a sample set spread over the image has not located the object, whatever its
+    mean scores).
     """
     if not math.isfinite(presence_score):
         return 0.0
-    z = CONFIDENCE_SLOPE * (presence_score - centre)
+    ref = max(float(reference), 0.0) if math.isfinite(reference) else 0.0
+    c = max(centre * ref, 0.05)
+    width = max(ref / 4.0, 0.1)
+    z = (presence_score - c) / width
     p = 1.0 / (1.0 + math.exp(-z)) if z > -50 else 0.0
     if math.isfinite(spread):
         p *= min(1.0, max(0.0, (1.0 - spread) / 0.75))

@@ -12,6 +12,7 @@ Notation: ``X`` shape vectors in the shape-space ``Q = W X + Q0`` of the templat
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Iterator
@@ -176,6 +177,7 @@ class Presence:
     miss: float
     colour_weight: float
     centre: float
+    reference: float = math.nan
 
     @classmethod
     def learn(cls, image: np.ndarray, fimg: np.ndarray, space: ShapeSpace, sampler: CurveSampler, X0: np.ndarray,
@@ -184,8 +186,12 @@ class Presence:
         poly, _, _ = contour_summary(space, X0)
         app = observe.learn_appearance(image, fimg, pts, nrm, poly, h=settings.search, sigma=settings.sigma,
                                        threshold=measurement.threshold)
-        return cls(app, settings.search, settings.sigma, measurement.threshold, settings.miss_probability,
-                   settings.colour_weight, measurement.presence_centre)
+        judge = cls(app, settings.search, settings.sigma, measurement.threshold, settings.miss_probability,
+                    settings.colour_weight, measurement.presence_centre)
+        ev = judge.evidence(image, fimg, space.origin + X0[:2])
+        reference, _, _ = observe.presence(app, ev, pts, nrm, h=judge.h, sigma=judge.sigma, threshold=judge.threshold,
+                                           miss=judge.miss, colour_weight=judge.colour_weight)
+        return dataclasses.replace(judge, reference=reference)
 
     def evidence(self, image: np.ndarray, fimg: np.ndarray, centre: np.ndarray) -> observe.FrameEvidence:
         return observe.evidence(self.app, image, fimg, centre, self.threshold)
@@ -198,7 +204,7 @@ class Presence:
         """``(confidence, log D)`` of one curve, ``spread`` its positional spread in object sizes."""
         s, e, _ = observe.presence(self.app, ev, pts, nrm, h=self.h, sigma=self.sigma, threshold=self.threshold,
                                    miss=self.miss, colour_weight=self.colour_weight)
-        return observe.confidence(s, spread, centre=self.centre), e * pts.shape[0]
+        return observe.confidence(s, spread, reference=self.reference, centre=self.centre), e * pts.shape[0]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -363,6 +369,7 @@ def track_condensation(
             edges = np.linspace(hist_range[0], hist_range[1], settings.histogram_bins + 1)
         if judge is None:
             judge = Presence.learn(frame.image, fimg, space, sampler, X0, measurement, settings)
+            jumps = translation_jumps(settings.jump_fraction, settings.jump_size * judge.app.size)
         ev = judge.evidence(frame.image, fimg, centre)
 
         def loglik(X: np.ndarray) -> np.ndarray:
@@ -381,12 +388,14 @@ def track_condensation(
             particles = cond.ParticleSet(particles.prev, particles.cur, loglik(particles.cur))
             ess = particles.ess
         else:
-            propose = None
+            propose = jumps
             if lost_prev and settings.reacquire:
                 peaks, strengths = observe.colour_peaks(ev.cmap, judge.app.size)
-                propose = observe.reacquisition_proposal(
+                reacquire = observe.reacquisition_proposal(
                     peaks, strengths, space.origin, judge.app.size, (frame.image.shape[1], frame.image.shape[0]),
                     fraction=settings.reacquire_fraction)
+                if reacquire is not None:
+                    propose = _chain(jumps, reacquire)
             particles, info = cond.step(particles, dynamics, loglik, rng, n_out=schedule(k),
                                         scheme=settings.resampling, ess_threshold=settings.ess_threshold,
                                         propose=propose)
@@ -420,6 +429,41 @@ def track_condensation(
             ess=float(ess), loglik=loglik_mean, lost=bool(lost_prev), confidence=conf, log_d=log_d,
             display=display,
         )
+
+
+def translation_jumps(fraction: float, rms: float):
+    """The jump part of CONDENSATION's motion prior, as a ``propose`` hook of :func:`cond.step`.
+
+    The prediction of the AR(2) model is smooth; objects in real footage also move
+    abruptly (a kick, a turn of the head, a jolt of the camera).  The motion prior is taken
+    as a mixture: with probability ``1 - fraction`` the AR(2) prediction, with probability
+    ``fraction`` the same plus an isotropic Gaussian jump of RMS ``rms`` px per axis in
+    translation.  Drawing from this prior needs no importance correction (zero log-weights).
+    Returns None when there are no jumps.
+    """
+    if fraction <= 0 or rms <= 0:
+        return None
+
+    def propose(new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        hit = rng.random(new.shape[0]) < fraction
+        out = new.copy()
+        out[hit, :2] += rms * rng.standard_normal((int(hit.sum()), 2))
+        return out, np.zeros(new.shape[0])
+
+    return propose
+
+
+def _chain(first, second):
+    """Two ``propose`` hooks applied in turn (either may be None); corrections add up."""
+    if first is None:
+        return second
+
+    def propose(new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        a, ca = first(new, rng)
+        b, cb = second(a, rng)
+        return b, ca + cb
+
+    return propose
 
 
 def _normals_with_features(fimg, pts, nrm, settings: CondensationSettings, m: MeasurementSettings) -> int:
