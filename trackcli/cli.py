@@ -438,15 +438,47 @@ def _mode_dict(m, H=None) -> dict:
 
 @cli.command("inspect")
 @click.argument("model_path", metavar="MODEL", type=click.Path(dir_okay=False))
+@click.option("--template", type=click.Path(dir_okay=False),
+              help="Show the model placed by this template, as `track --model MODEL --template T` uses it "
+                   "on the clip where T was drawn.")
+@click.option("-c", "--config", type=click.Path(dir_okay=False),
+              help="Configuration whose placement settings apply, as for `track -c` (default: the defaults).")
+@click.option("--fps", type=click.FloatRange(min=0, min_open=True),
+              help="Frame rate of the clip where T was drawn (default: the model's).")
 @click.option("--json", "as_json", is_flag=True, help="Machine-readable output.")
-def inspect_cmd(model_path, as_json):
-    """Show a model: shape-space, dynamics, modes (AC eqs 11.10-11.13), steady-state spread."""
+def inspect_cmd(model_path, template, config, fps, as_json):
+    """Show a model: shape-space, dynamics, modes (AC eqs 11.10-11.13), steady-state spread.
+
+    \b
+    With --template T: the model placed where (and at the size) T was drawn, as tracking
+    that clip uses it: its mean, stability and modes, next to the learned spectral
+    radius.  The placement settings (noise factors, coupling) are those of -c CONFIG, as
+    for `track`.
+    """
     import numpy as np
 
-    from .model import load_model
+    from .model import load_model, place_dynamics, place_space
+    from .template import load_template
 
     m = load_model(model_path)
     dyn, space = m.dynamics, m.space
+    placement = None
+    if template:
+        tmpl = load_template(template)
+        settings = _settings(config, {})
+        space, X0 = place_space(m.space, tmpl)
+        report: list = []
+        tau = 1.0 / fps if fps else m.dynamics.tau
+        p = settings.placement
+        dyn = place_dynamics(m.dynamics, space, X0, tau, translation_noise=p.translation_noise,
+                             deformation_noise=p.deformation_noise, coupling=p.coupling,
+                             max_spectral_radius=settings.learning.max_spectral_radius, report=report)
+        r = report[0]
+        placement = {"template": str(template), "scale": r.scale, "coupling": r.coupling,
+                     "translation_noise": p.translation_noise, "deformation_noise": p.deformation_noise,
+                     "learned_spectral_radius": r.learned_radius, "spectral_radius": r.radius,
+                     "restabilised": r.restabilised, "limit": r.limit,
+                     "centroid": [float(v) for v in space.origin]}
     try:
         rms = dyn.rms_displacement(space.H)
         Es = space.translation_projector()
@@ -469,11 +501,21 @@ def inspect_cmd(model_path, as_json):
         "modes": [_mode_dict(x, space.H) for x in modes],
         "provenance": m.provenance,
     }
+    if placement is not None:
+        info["placement"] = placement
     if as_json:
         _echo_json(_clean_json(info))
         return
     fmt = lambda v: "n/a" if v is None else f"{v:.2f}"  # noqa: E731
-    click.echo(f"model {model_path}")
+    click.echo(f"model {model_path}" + (f", placed by template {template}" if placement else ""))
+    if placement is not None:
+        click.echo(f"  placement     centroid ({placement['centroid'][0]:.1f}, {placement['centroid'][1]:.1f}) px, "
+                   f"size {placement['scale']:.3f} x the model's template, coupling {placement['coupling']}, "
+                   f"noise factors {placement['translation_noise']:g} (translation), "
+                   f"{placement['deformation_noise']:g} (rest)")
+        click.echo(f"                spectral radius {placement['learned_spectral_radius']:.4f} learned -> "
+                   f"{placement['spectral_radius']:.4f} placed"
+                   + (f" (re-stabilised: modes pulled in to {placement['limit']:.4f})" if placement["restabilised"] else ""))
     click.echo(f"  shape-space   {space.kind}: {', '.join(names)} ({space.Nq} control points, degree "
                f"{space.basis.degree}, {'closed' if space.basis.closed else 'open'})")
     click.echo(f"  frame interval {dyn.tau:.4g} s ({1 / dyn.tau:.3g} frames/s)")

@@ -283,7 +283,9 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
     if model:
         m = load_model(model)
         noise = {"translation_noise": settings.placement.translation_noise,
-                 "deformation_noise": settings.placement.deformation_noise}
+                 "deformation_noise": settings.placement.deformation_noise,
+                 "coupling": settings.placement.coupling,
+                 "max_spectral_radius": settings.learning.max_spectral_radius}
         if template:
             tmpl = load_template(template)
             check_template_frame(tmpl, video)
