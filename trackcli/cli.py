@@ -183,6 +183,25 @@ def _settings(config: str | None, overrides: dict):
     return load_settings(config, {k: v for k, v in overrides.items() if v is not None})
 
 
+def _explicit_keys(config: str | None, overrides: dict) -> set[str]:
+    """Dotted keys the user set: every key of the configuration file, and the options given."""
+    from .config import read_yaml
+
+    keys = {k for k, v in overrides.items() if v is not None}
+
+    def walk(node, prefix: str) -> None:
+        for k, v in node.items():
+            key = f"{prefix}{k}"
+            if isinstance(v, dict) and v:
+                walk(v, key + ".")
+            else:
+                keys.add(key)
+
+    if config is not None:
+        walk(read_yaml(config), "")
+    return keys
+
+
 def _open(clip: str, settings):
     from .video import open_video
 
@@ -276,6 +295,10 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
       --model M                the model as learned, starting where its template was drawn
       --template T             T's shape-space with hand-set dynamics (configs/)
 
+    With --model, the measurement settings (edge polarity, normals, smoothing, edge operator,
+    threshold, channel) are the model's own, those it was learned with, except the keys
+    that -c CONFIG sets; everything else comes from the configuration (-v says which).
+
     \b
     Per clip, in OUTDIR:
       CLIP.TRACKER.csv         per-frame estimates (see README: track format)
@@ -291,8 +314,9 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
 
     if not model and not template:
         raise click.UsageError("give --model, --template, or both")
-    settings = _settings(config, {"condensation.particles": particles, "seed": seed,
-                                  **_video_overrides(fps, start, end, step)})
+    overrides = {"condensation.particles": particles, "seed": seed, **_video_overrides(fps, start, end, step)}
+    settings = _settings(config, overrides)
+    explicit = _explicit_keys(config, overrides) if model else None
     out = ensure_dir(outdir)
     stems = [clip_name(c) for c in clips]
     if len(set(stems)) != len(stems):
@@ -307,7 +331,7 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
         try:
             summary = track_clip(clip, settings=settings, outdir=out, model=model, template=template,
                                  tracker=tracker, name=stem, rrd=not no_rrd,
-                                 progress=lambda label, n: _progress(ctx, n, label))
+                                 progress=lambda label, n: _progress(ctx, n, label), explicit=explicit)
         except TrackcliError as exc:
             if len(clips) == 1:
                 raise

@@ -23,12 +23,12 @@ import logging
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Collection
 
 import numpy as np
 import yaml
 
-from .config import Settings, settings_from_dict, to_dict
+from .config import Settings, replace, settings_from_dict, to_dict
 from .dynamics import AR2, symmetric_sqrt
 from .errors import ConfigError, ModelError, TrackcliError
 from .outputs import read_yaml_file, write_text
@@ -91,26 +91,6 @@ def load_model(path: str | Path) -> Model:
         raise ModelError(f"{p}: dynamics has {dynamics.nx} components but the shape-space has {space.Nx}")
     prov = d.get("provenance") or {}
     return Model(template, space, dynamics, settings, prov if isinstance(prov, dict) else {})
-
-
-def scale_direction(space: ShapeSpace) -> np.ndarray | None:
-    """The shape vector ``e`` that scales the space's template about its origin, or None.
-
-    ``W e = Q0 − origin`` (per coordinate): then ``X ↦ s X + (s − 1) e`` is the same curve
-    scaled by ``s`` about the origin, and translation by ``s`` too, for every ``X``.  The
-    similarity and affine spaces (and spaces extending them) have such a direction; a
-    translation or PCA space does not (None).
-    """
-    n = space.Nq
-    rel = space.Q0.copy()
-    rel[:n] -= space.origin[0]
-    rel[n:] -= space.origin[1]
-    e = space.pinv @ rel
-    residual = space.W @ e - rel
-    size = float(np.sqrt(rel @ space.basis.U @ rel))
-    if size == 0 or float(np.sqrt(residual @ space.basis.U @ residual)) > 1e-6 * size:
-        return None
-    return e
 
 
 def scale_direction(space: ShapeSpace) -> np.ndarray | None:
