@@ -55,3 +55,26 @@ def ellipse_clip(tmp_path_factory) -> Path:
         writer.write(ellipse_frame(rng, k))
     writer.release()
     return path
+
+
+def check_placed(learned, placed) -> None:
+    """A stable learned model must be placed stable (spectral radius < 1)."""
+    if learned.spectral_radius() < 1.0:
+        radius = placed.spectral_radius()
+        assert radius < 1.0, f"placing a stable model (spectral radius {learned.spectral_radius():.4f}) " \
+                             f"gave spectral radius {radius:.4f}"
+
+
+@pytest.fixture(autouse=True)
+def _every_placed_model_is_checked(monkeypatch):
+    """Route every ``trackcli.model.place_dynamics`` call of a test through :func:`check_placed`."""
+    from trackcli import model
+
+    original = model.place_dynamics
+
+    def checked(dynamics, *args, **kwargs):
+        placed = original(dynamics, *args, **kwargs)
+        check_placed(dynamics, placed)
+        return placed
+
+    monkeypatch.setattr(model, "place_dynamics", checked)

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from trackcli.dynamics import AR2, oscillator_coefficients
 from trackcli.errors import DataError
-from trackcli.learning import AR2Statistics, _stabilise, fit_ar2
+from trackcli.learning import AR2Statistics, fit_ar2, stabilise
 
 TAU = 0.04
 
@@ -338,7 +338,7 @@ def test_enforce_stability_leaves_stable_fits_alone():
 
 def test_stabilise_scales_a_defective_model():
     """Constant velocity has a repeated, defective eigenvalue 1: all eigenvalues are scaled."""
-    A2, A1, how = _stabilise(-np.eye(2), 2 * np.eye(2), 0.95)
+    A2, A1, how = stabilise(-np.eye(2), 2 * np.eye(2), 0.95)
     assert how == "scaled"
     np.testing.assert_allclose(A1, 2 * 0.95 * np.eye(2))
     np.testing.assert_allclose(A2, -(0.95**2) * np.eye(2))

@@ -71,24 +71,25 @@ def _coupled_dynamics(rng: np.random.Generator) -> AR2:
     return AR2(A2, A1, B, np.array([5.0, -3.0, 0.01, -0.02]), 0.04)
 
 
-def test_place_dynamics_decouples_translation_and_scales_its_noise():
+def test_place_dynamics_without_coupling_keeps_the_blocks_and_scales_the_noise():
     space = _space()
     dyn = _coupled_dynamics(np.random.default_rng(3))
     Es, Ed = translation_split(space)
     np.testing.assert_array_equal(Es, np.diag([1.0, 1.0, 0.0, 0.0]))  # tx, ty are axes here
-    X0 = np.array([0.0, 0.0, 0.05, 0.0])
-    placed = place_dynamics(dyn, space, X0, 0.04, translation_noise=3.0, deformation_noise=2.0)
+    X0 = np.array([0.0, 0.0, 0.05, 0.0])  # the template at 1.05 times the model's size
+    placed = place_dynamics(dyn, space, X0, 0.04, translation_noise=3.0, deformation_noise=2.0, coupling="none",
+                            max_spectral_radius=0.999)
     for A, A_old in ((placed.A1, dyn.A1), (placed.A2, dyn.A2)):
         np.testing.assert_array_equal(A[:2, 2:], 0.0)
         np.testing.assert_array_equal(A[2:, :2], 0.0)
         np.testing.assert_allclose(A[:2, :2], A_old[:2, :2])  # the blocks are kept as learned
         np.testing.assert_allclose(A[2:, 2:], A_old[2:, 2:])
     C_old, C = dyn.B0 @ dyn.B0.T, placed.B0 @ placed.B0.T
-    np.testing.assert_allclose(C[:2, :2], 9.0 * C_old[:2, :2], rtol=1e-9)
-    np.testing.assert_allclose(C[2:, 2:], 4.0 * C_old[2:, 2:], rtol=1e-9)
-    np.testing.assert_allclose(C[:2, 2:], 0.0, atol=1e-12)
-    # translation mean where the object is placed, the rest of the mean as learned
-    np.testing.assert_allclose(placed.mean, [0.0, 0.0, 0.01, -0.02])
+    np.testing.assert_allclose(C[:2, :2], (1.05 * 3.0) ** 2 * C_old[:2, :2], rtol=1e-9)
+    np.testing.assert_allclose(C[2:, 2:], (1.05 * 2.0) ** 2 * C_old[2:, 2:], rtol=1e-9)
+    np.testing.assert_allclose(C[:2, 2:], 1.05**2 * 6.0 * C_old[:2, 2:], rtol=1e-9)
+    # translation mean where the object is placed, the learned mean shape at the placed size
+    np.testing.assert_allclose(placed.mean, [0.0, 0.0, 1.05 * 1.01 - 1, 1.05 * -0.02])
     assert place_dynamics(dyn, space, None, 0.04).mean.tolist() == dyn.mean.tolist()
 
 
@@ -172,6 +173,20 @@ def test_the_model_is_learned_in_one_cycle_as_the_config_says(clutter_runs):
     model = load_model(clutter_runs / "model.yaml")
     assert model.provenance["cycles"] == 1
     assert model.dynamics.is_stable()
+
+
+def test_the_sample_model_is_placed_with_its_learned_modes(clutter_runs):
+    """The model as `track -c sample-clutter.yaml --model M --template T` uses it on test.mp4."""
+    learned = load_model(clutter_runs / "model.yaml").dynamics
+    with open_video(SAMPLE_DATA / "test.mp4") as video:
+        setup = tracking_setup(clutter_runs / "model.yaml", clutter_runs / "head-test.yaml",
+                               load_settings(CLUTTER), video)
+    placed = setup.dynamics
+    assert placed.spectral_radius() == pytest.approx(learned.spectral_radius(), abs=1e-9)
+    assert placed.spectral_radius() < 1
+    for got, want in zip(placed.modes(), learned.modes()):
+        assert got.frequency == pytest.approx(want.frequency, abs=1e-9)
+        assert got.beta == pytest.approx(want.beta, abs=1e-6)
 
 
 def test_condensation_keeps_lock_in_clutter(clutter_runs):

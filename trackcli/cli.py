@@ -183,6 +183,25 @@ def _settings(config: str | None, overrides: dict):
     return load_settings(config, {k: v for k, v in overrides.items() if v is not None})
 
 
+def _explicit_keys(config: str | None, overrides: dict) -> set[str]:
+    """Dotted keys the user set: every key of the configuration file, and the options given."""
+    from .config import read_yaml
+
+    keys = {k for k, v in overrides.items() if v is not None}
+
+    def walk(node, prefix: str) -> None:
+        for k, v in node.items():
+            key = f"{prefix}{k}"
+            if isinstance(v, dict) and v:
+                walk(v, key + ".")
+            else:
+                keys.add(key)
+
+    if config is not None:
+        walk(read_yaml(config), "")
+    return keys
+
+
 def _open(clip: str, settings):
     from .video import open_video
 
@@ -276,6 +295,10 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
       --model M                the model as learned, starting where its template was drawn
       --template T             T's shape-space with hand-set dynamics (configs/)
 
+    With --model, the measurement settings (edge polarity, normals, smoothing, edge operator,
+    threshold, channel) are the model's own, those it was learned with, except the keys
+    that -c CONFIG sets; everything else comes from the configuration (-v says which).
+
     \b
     Per clip, in OUTDIR:
       CLIP.TRACKER.csv         per-frame estimates (see README: track format)
@@ -291,8 +314,9 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
 
     if not model and not template:
         raise click.UsageError("give --model, --template, or both")
-    settings = _settings(config, {"condensation.particles": particles, "seed": seed,
-                                  **_video_overrides(fps, start, end, step)})
+    overrides = {"condensation.particles": particles, "seed": seed, **_video_overrides(fps, start, end, step)}
+    settings = _settings(config, overrides)
+    explicit = _explicit_keys(config, overrides) if model else None
     out = ensure_dir(outdir)
     stems = [clip_name(c) for c in clips]
     if len(set(stems)) != len(stems):
@@ -307,7 +331,7 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
         try:
             summary = track_clip(clip, settings=settings, outdir=out, model=model, template=template,
                                  tracker=tracker, name=stem, rrd=not no_rrd,
-                                 progress=lambda label, n: _progress(ctx, n, label))
+                                 progress=lambda label, n: _progress(ctx, n, label), explicit=explicit)
         except TrackcliError as exc:
             if len(clips) == 1:
                 raise
@@ -438,15 +462,47 @@ def _mode_dict(m, H=None) -> dict:
 
 @cli.command("inspect")
 @click.argument("model_path", metavar="MODEL", type=click.Path(dir_okay=False))
+@click.option("--template", type=click.Path(dir_okay=False),
+              help="Show the model placed by this template, as `track --model MODEL --template T` uses it "
+                   "on the clip where T was drawn.")
+@click.option("-c", "--config", type=click.Path(dir_okay=False),
+              help="Configuration whose placement settings apply, as for `track -c` (default: the defaults).")
+@click.option("--fps", type=click.FloatRange(min=0, min_open=True),
+              help="Frame rate of the clip where T was drawn (default: the model's).")
 @click.option("--json", "as_json", is_flag=True, help="Machine-readable output.")
-def inspect_cmd(model_path, as_json):
-    """Show a model: shape-space, dynamics, modes (AC eqs 11.10-11.13), steady-state spread."""
+def inspect_cmd(model_path, template, config, fps, as_json):
+    """Show a model: shape-space, dynamics, modes (AC eqs 11.10-11.13), steady-state spread.
+
+    \b
+    With --template T: the model placed where (and at the size) T was drawn, as tracking
+    that clip uses it: its mean, stability and modes, next to the learned spectral
+    radius.  The placement settings (noise factors, coupling) are those of -c CONFIG, as
+    for `track`.
+    """
     import numpy as np
 
-    from .model import load_model
+    from .model import load_model, place_dynamics, place_space
+    from .template import load_template
 
     m = load_model(model_path)
     dyn, space = m.dynamics, m.space
+    placement = None
+    if template:
+        tmpl = load_template(template)
+        settings = _settings(config, {})
+        space, X0 = place_space(m.space, tmpl)
+        report: list = []
+        tau = 1.0 / fps if fps else m.dynamics.tau
+        p = settings.placement
+        dyn = place_dynamics(m.dynamics, space, X0, tau, translation_noise=p.translation_noise,
+                             deformation_noise=p.deformation_noise, coupling=p.coupling,
+                             max_spectral_radius=settings.learning.max_spectral_radius, report=report)
+        r = report[0]
+        placement = {"template": str(template), "scale": r.scale, "coupling": r.coupling,
+                     "translation_noise": p.translation_noise, "deformation_noise": p.deformation_noise,
+                     "learned_spectral_radius": r.learned_radius, "spectral_radius": r.radius,
+                     "restabilised": r.restabilised, "limit": r.limit,
+                     "centroid": [float(v) for v in space.origin]}
     try:
         rms = dyn.rms_displacement(space.H)
         Es = space.translation_projector()
@@ -469,11 +525,21 @@ def inspect_cmd(model_path, as_json):
         "modes": [_mode_dict(x, space.H) for x in modes],
         "provenance": m.provenance,
     }
+    if placement is not None:
+        info["placement"] = placement
     if as_json:
         _echo_json(_clean_json(info))
         return
     fmt = lambda v: "n/a" if v is None else f"{v:.2f}"  # noqa: E731
-    click.echo(f"model {model_path}")
+    click.echo(f"model {model_path}" + (f", placed by template {template}" if placement else ""))
+    if placement is not None:
+        click.echo(f"  placement     centroid ({placement['centroid'][0]:.1f}, {placement['centroid'][1]:.1f}) px, "
+                   f"size {placement['scale']:.3f} x the model's template, coupling {placement['coupling']}, "
+                   f"noise factors {placement['translation_noise']:g} (translation), "
+                   f"{placement['deformation_noise']:g} (rest)")
+        click.echo(f"                spectral radius {placement['learned_spectral_radius']:.4f} learned -> "
+                   f"{placement['spectral_radius']:.4f} placed"
+                   + (f" (re-stabilised: modes pulled in to {placement['limit']:.4f})" if placement["restabilised"] else ""))
     click.echo(f"  shape-space   {space.kind}: {', '.join(names)} ({space.Nq} control points, degree "
                f"{space.basis.degree}, {'closed' if space.basis.closed else 'open'})")
     click.echo(f"  frame interval {dyn.tau:.4g} s ({1 / dyn.tau:.3g} frames/s)")

@@ -185,6 +185,7 @@ class CondensationSettings:
 class PlacementSettings:
     translation_noise: float = _f(1.0, "float", "factor on a learned model's translational process noise when it tracks a clip: how much more agile the motion is than in training (1 = as learned)", lo=0, lo_open=True, hi=1000)
     deformation_noise: float = _f(1.0, "float", "the same factor for the rest of shape-space (rotation, scale, other deformation)", lo=0, lo_open=True, hi=1000)
+    coupling: str = _f("keep", "str", "learned coupling between translation and the rest kept on placing: keep (all, as learned: modes unchanged), velocity (drop the position terms), none (drop all; re-stabilised if needed)", choices=("keep", "velocity", "none"))
 
 
 @dataclass(frozen=True)

@@ -45,7 +45,7 @@ import numpy as np
 from .dynamics import AR2, symmetric_sqrt
 from .errors import DataError
 
-__all__ = ["AR2Statistics", "LearningReport", "fit_ar2"]
+__all__ = ["AR2Statistics", "LearningReport", "fit_ar2", "stabilise"]
 
 # Singular values of (I - Â2 - Â1) below this make the mean X̄ numerically undefined.
 MEAN_SINGULAR_TOL = 1e-8
@@ -317,7 +317,7 @@ def _companion(A2: np.ndarray, A1: np.ndarray) -> np.ndarray:
     return np.block([[np.zeros((n, n)), np.eye(n)], [A2, A1]])
 
 
-def _stabilise(A2: np.ndarray, A1: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray, str]:
+def stabilise(A2: np.ndarray, A1: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray, str]:
     """Pull every state-matrix eigenvalue with ``|λ| > limit`` in to ``|λ| = limit``.
 
     Each offending eigenvalue keeps its argument (so its frequency) and its mode shape;
@@ -440,7 +440,7 @@ def fit_ar2(data: Any, tau: float, *, mean: Any = None, enforce_stability: bool 
     free_radius = float(np.abs(np.linalg.eigvals(_companion(A2, A1))).max())
     stabilised = "no"
     if enforce_stability:
-        A2, A1, stabilised = _stabilise(A2, A1, limit)
+        A2, A1, stabilised = stabilise(A2, A1, limit)
         coef = np.hstack([A2, A1])
 
     C = _residual_scatter(S, coef) / n

@@ -19,7 +19,7 @@ import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Callable, ContextManager, Iterable, Iterator
+from typing import Any, Callable, Collection, ContextManager, Iterable, Iterator
 
 import numpy as np
 
@@ -283,7 +283,9 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
     if model:
         m = load_model(model)
         noise = {"translation_noise": settings.placement.translation_noise,
-                 "deformation_noise": settings.placement.deformation_noise}
+                 "deformation_noise": settings.placement.deformation_noise,
+                 "coupling": settings.placement.coupling,
+                 "max_spectral_radius": settings.learning.max_spectral_radius}
         if template:
             tmpl = load_template(template)
             check_template_frame(tmpl, video)
@@ -320,6 +322,7 @@ def track_clip(
     name: str | None = None,
     rrd: bool = True,
     progress: Callable[[str, int], ContextManager[Any]] | None = None,
+    explicit: Collection[str] | None = None,
 ) -> RunSummary:
     """Track one clip and write its outputs: what ``trackcli track`` does per clip.
 
@@ -347,6 +350,12 @@ def track_clip(
     progress : callable, optional
         ``progress(label, n_frames)`` returns a context manager whose value has
         ``update(n)``, called after every frame (e.g. a progress bar).
+    explicit : collection of str, optional
+        With a ``model``: the dotted setting keys the user set (configuration file and
+        options).  Every other key of the sections a model carries
+        (:data:`trackcli.model.MODEL_SECTIONS`) is then taken from the model's stored
+        settings (:func:`trackcli.model.settings_with_model`).  None: ``settings`` are used
+        as given.
 
     Returns
     -------
@@ -365,6 +374,12 @@ def track_clip(
     if tracker not in TRACKERS:
         raise ConfigError(f"tracker: expected one of {', '.join(TRACKERS)}, got {tracker!r}")
     name = name or clip_name(clip)
+    if model and explicit is not None:
+        from .model import load_model, settings_with_model
+
+        settings, sources = settings_with_model(settings, load_model(model).settings, explicit, f"model {model}")
+        for section, source in sources.items():
+            log.info("%s settings: %s", section, source)
     out = ensure_dir(outdir)
     v = settings.video
     with open_video(clip, fps=v.fps, start=v.start, end=v.end, step=v.step) as video:

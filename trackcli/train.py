@@ -58,11 +58,105 @@ class CycleRecord:
     report: dict[str, Any] = field(default_factory=dict)
 
 
-def learn_from_sequences(sequences: Sequence[np.ndarray], tau: float, settings: Settings) -> tuple[AR2, dict[str, Any]]:
-    """Fit AR(2) dynamics to several shape sequences (statistics pooled)."""
-    model, report = fit_ar2(list(sequences), tau, enforce_stability=settings.learning.enforce_stability,
+#: A piece of a track shorter than this has no frame triple to learn AR(2) dynamics from.
+MIN_SEGMENT = 3
+#: Dropping more than this fraction of the training frames is warned about.
+DROP_WARN_FRACTION = 0.1
+
+
+def held_segments(X: np.ndarray, lost: np.ndarray | None) -> list[np.ndarray]:
+    """The runs of consecutive frames the tracker held (``lost`` false), of at least
+    :data:`MIN_SEGMENT` frames, in order.  ``lost = None`` means every frame was held."""
+    X = np.asarray(X, dtype=float)
+    if lost is None:
+        return [X] if len(X) >= MIN_SEGMENT else []
+    lost = np.asarray(lost, dtype=bool)
+    if lost.shape != (len(X),):
+        raise DataError(f"{len(X)} frames but {lost.size} lost flags")
+    out, start = [], None
+    for k, bad in enumerate([*lost, True]):
+        if not bad and start is None:
+            start = k
+        elif bad and start is not None:
+            if k - start >= MIN_SEGMENT:
+                out.append(X[start:k])
+            start = None
+    return out
+
+
+def learn_from_sequences(sequences: Sequence[np.ndarray], tau: float, settings: Settings, *,
+                         lost: Sequence[np.ndarray | None] | None = None,
+                         labels: Sequence[str] | None = None) -> tuple[AR2, dict[str, Any]]:
+    """Fit AR(2) dynamics to several shape sequences (statistics pooled).
+
+    With ``lost`` (one array of flags per sequence, or None for a sequence held
+    throughout), only the frames the tracker held are learned from: lost frames split a
+    sequence into segments, and segments of at least :data:`MIN_SEGMENT` frames are pooled
+    like separate sequences (AC §11.2), so that no frame triple spans a lost stretch.  A
+    warning gives the counts when more than a tenth of the frames is dropped.
+
+    Raises
+    ------
+    DataError
+        Too few held frames are left to learn from.
+    """
+    sequences = [np.asarray(X, dtype=float) for X in sequences]
+    flags = list(lost) if lost is not None else [None] * len(sequences)
+    names = list(labels) if labels is not None else [f"sequence {i + 1}" for i in range(len(sequences))]
+    if len(flags) != len(sequences) or len(names) != len(sequences):
+        raise DataError("one list of lost flags and one label per sequence are needed")
+    segments: list[np.ndarray] = []
+    per_clip = []
+    for X, fl, name in zip(sequences, flags, names):
+        pieces = held_segments(X, fl)
+        segments += pieces
+        used = sum(len(p) for p in pieces)
+        n_lost = int(np.count_nonzero(fl)) if fl is not None else 0
+        per_clip.append({"name": name, "frames": len(X), "lost": n_lost, "used": used, "segments": len(pieces)})
+    total = sum(c["frames"] for c in per_clip)
+    used = sum(c["used"] for c in per_clip)
+    dropped = total - used
+    if total and dropped > DROP_WARN_FRACTION * total:
+        detail = "; ".join(f"{c['name']}: {c['lost']} lost, {c['frames'] - c['used'] - c['lost']} in pieces "
+                           f"shorter than {MIN_SEGMENT} frames, {c['used']} used in {c['segments']} segment(s)"
+                           for c in per_clip if c["used"] < c["frames"])
+        log.warning("learning from %d of %d training frames: %d dropped where the tracker had lost the object (%s)",
+                    used, total, dropped, detail)
+    nx = sequences[0].shape[1] if sequences and sequences[0].ndim == 2 else 1
+    triples = sum(len(p) - 2 for p in segments)
+    if triples <= 2 * nx + 1:
+        raise DataError(f"too few frames held by the tracker to learn from: {used} of {total} frames in "
+                        f"{len(segments)} segment(s) of at least {MIN_SEGMENT} held frames give {triples} frame "
+                        f"triples, and {nx}-dimensional AR(2) dynamics need more than {2 * nx + 1}; "
+                        "train on clips the tracker follows, or with settings that hold the object")
+    model, report = fit_ar2(segments, tau, enforce_stability=settings.learning.enforce_stability,
                             max_spectral_radius=settings.learning.max_spectral_radius)
-    return model, report.to_dict()
+    out = report.to_dict()
+    out["frames_total"] = total
+    out["frames_dropped"] = dropped
+    out["per_sequence"] = per_clip
+    return model, out
+
+
+def read_lost(path: str | Path, n_rows: int) -> np.ndarray:
+    """The ``lost`` column of a track CSV (all false when the file has none)."""
+    import csv
+
+    with open(path, newline="", encoding="utf-8") as fh:
+        rows = [r for r in csv.reader(fh) if r]
+    head = rows[0]
+    if "lost" not in head:
+        return np.zeros(n_rows, dtype=bool)
+    i = head.index("lost")
+    flags = []
+    for k, r in enumerate(rows[1:], 2):
+        cell = r[i].strip() if i < len(r) else ""
+        if cell not in ("", "0", "1"):
+            raise DataError(f"{path} line {k}: lost must be 0 or 1, got {cell!r}")
+        flags.append(cell == "1")
+    if len(flags) != n_rows:
+        raise DataError(f"{path}: {n_rows} shape rows but {len(flags)} lost flags")
+    return np.asarray(flags, dtype=bool)
 
 
 def pca_space(template: Template, outlines_Q: np.ndarray, k: int) -> tuple[ShapeSpace, list[float]]:
@@ -102,7 +196,7 @@ def train(
     for cycle in range(1, cycles + 1):
         t0 = time.perf_counter()
         rec = CycleRecord(cycle, 0.0)
-        sequences = []
+        sequences, flags, labels = [], [], []
         for video in clips:
             stem = Path(str(video.path)).stem or Path(str(video.path)).name
             base = outdir / f"{stem}.cycle{cycle}"
@@ -122,18 +216,21 @@ def train(
             rec.runs.append(summary)
             _, X, _ = read_track(summary.csv, space.names)
             sequences.append(X)
+            flags.append(read_lost(summary.csv, len(X)))
+            labels.append(f"{stem} (cycle {cycle})")
         if kind == "pca" and cycle == 1:
             outlines = [space.to_control(X) for X in sequences]
-            space, explained = pca_space(template, np.vstack(outlines), k)  # type: ignore[arg-type]
+            held = [Q[~fl] for Q, fl in zip(outlines, flags)]
+            space, explained = pca_space(template, np.vstack(held), k)  # type: ignore[arg-type]
             sequences = [space.project(Q) for Q in outlines]
-        dynamics, report = learn_from_sequences(sequences, tau, settings)
+        dynamics, report = learn_from_sequences(sequences, tau, settings, lost=flags, labels=labels)
         if explained is not None:
             report["pca_explained"] = explained
         rec.report = report
         rec.seconds = time.perf_counter() - t0
         records.append(rec)
         log.info("cycle %d: learned from %d frames in %.1f s; spectral radius %.4f",
-                 cycle, sum(len(s) for s in sequences), rec.seconds, report.get("spectral_radius", math.nan))
+                 cycle, report.get("n_frames", 0), rec.seconds, report.get("spectral_radius", math.nan))
     provenance = {
         "clips": [str(v.path) for v in clips],
         "frames": [len(v) for v in clips],
@@ -162,13 +259,15 @@ def learn_from_tracks(track_paths: Sequence[str], template: Template, settings: 
     if kind == "pca":
         raise ConfigError("--shape-space pca:K needs tracking (tracked outlines); not available with --from-tracks")
     space = build_space(template, kind)
-    sequences = []
+    sequences, flags = [], []
     for p in track_paths:
         frames, X, _ = read_track(p, space.names)
         if len(frames) > 1 and len(set(np.diff(frames))) > 1:
             raise DataError(f"{p}: frames are not evenly spaced; learning needs a regular sequence")
         sequences.append(X)
-    dynamics, report = learn_from_sequences(sequences, tau, settings)
+        flags.append(read_lost(p, len(X)))
+    dynamics, report = learn_from_sequences(sequences, tau, settings, lost=flags,
+                                            labels=[Path(str(p)).name for p in track_paths])
     provenance = {"tracks": list(map(str, track_paths)), "frames": [len(s) for s in sequences],
                   "cycles": 0, "shape_space": kind, "learning": report}
     return Model(template, space, dynamics, settings, provenance)
