@@ -185,6 +185,8 @@ class LearningSettings:
 class OutputSettings:
     rrd: bool = _f(True, "bool", "write a Rerun recording (.rrd)")
     jpeg_quality: int = _f(80, "int", "JPEG quality of frames stored in recordings", lo=10, hi=100)
+    outline_points: int = _f(64, "int", "points of the estimated outline written to each row of the track CSV "
+                             "(outline_x0, outline_y0, ...); 0 = none, otherwise at least 2", lo=0, hi=1000)
 
 
 @dataclass(frozen=True)

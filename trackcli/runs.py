@@ -28,7 +28,7 @@ from .dynamics import AR2
 from .errors import ConfigError, TemplateError
 from .outputs import ensure_dir, write_text
 from .shape_space import ShapeSpace
-from .tracks import TrackWriter
+from .tracks import OutlineColumns, TrackWriter
 
 log = logging.getLogger(__name__)
 
@@ -104,6 +104,7 @@ def run_clip(
     jpeg_quality: int = 80,
     progress: Callable[[int], None] | None = None,
     recording_id: str | None = None,
+    outline_points: int = 64,
 ) -> RunSummary:
     """Track ``video`` with ``make_tracker(frames)`` and write the outputs.
 
@@ -116,7 +117,12 @@ def run_clip(
         Gives the CSV column names.
     progress : callable, optional
         Called with 1 after every frame (for a progress bar).
+    outline_points : int
+        Points of the estimated outline written to every CSV row (0: no outline columns).
     """
+    if outline_points == 1:
+        raise ConfigError("output.outline_points: expected 0 (no outline) or at least 2 points, got 1")
+    outline = OutlineColumns(space, int(outline_points)) if outline_points else None
     frames = _TimedFrames(video)
     results = make_tracker(frames)
     t_start = time.perf_counter()
@@ -135,7 +141,7 @@ def run_clip(
         rec_ctx = Recording(rrd_path, app_id="trackcli", recording_id=recording_id, blueprint="track")
         rec = rec_ctx.__enter__()
     try:
-        with TrackWriter(csv_path, space.names) as writer:
+        with TrackWriter(csv_path, space.names, outline) as writer:
             if rec is not None:
                 rec.log_params("params", params)
                 path = getattr(video, "path", None)
@@ -387,4 +393,5 @@ def track_clip(
             return run_clip(video, make, space, tracker=tracker, csv_path=Path(f"{base}.csv"),
                             rrd_path=Path(f"{base}.rrd") if (rrd and settings.output.rrd) else None,
                             params=params, jpeg_quality=settings.output.jpeg_quality,
-                            progress=bar.update, recording_id=f"{name}-{tracker}-{settings.seed}")
+                            progress=bar.update, recording_id=f"{name}-{tracker}-{settings.seed}",
+                            outline_points=settings.output.outline_points)
