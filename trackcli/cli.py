@@ -538,7 +538,7 @@ def simulate_cmd(model_path, n_frames, n_paths, seed, output, size):
 
 
 @cli.command("eval")
-@click.argument("pred", type=click.Path(dir_okay=False))
+@click.argument("tracks", nargs=-1, required=True, type=click.Path(dir_okay=False), metavar="PRED...")
 @click.argument("truth", type=click.Path())
 @click.option("--threshold", type=click.FloatRange(min=0, min_open=True), default=20.0, show_default=True,
               help="Centre-error threshold (px) for precision.")
@@ -546,26 +546,67 @@ def simulate_cmd(model_path, n_frames, n_paths, seed, output, size):
               help="Also count a frame lost when its centre error exceeds this (px).")
 @click.option("--object", "object_id", type=click.IntRange(min=0), default=0, show_default=True,
               help="Object id in a trackcli truth CSV with several objects.")
-@click.option("--json", "as_json", is_flag=True, help="Print the scores as one JSON object.")
-def eval_cmd(pred, truth, threshold, lost_threshold, object_id, as_json):
-    """Score estimates PRED (a track CSV) against ground truth TRUTH.
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
+              help="Write the precision plot (0-50 px) and the success plot (IoU 0-1) of all PRED to this PNG.")
+@click.option("--json", "as_json", is_flag=True, help="Print the scores as one JSON object per PRED.")
+@click.pass_context
+def eval_cmd(ctx, tracks, truth, threshold, lost_threshold, object_id, plot_path, as_json):
+    """Score estimates PRED (one or more track CSVs) against ground truth TRUTH.
 
     TRUTH is a trackcli truth CSV (sample_data/*.truth.csv), a benchmark box file (one
     'x,y,w,h' line per frame, comma or whitespace separated), or a folder holding
-    groundtruth_rect.txt / groundtruth.txt.
+    groundtruth_rect.txt / groundtruth.txt.  Frames are matched by index; when a track and
+    the truth cover different frames, a warning says which frames were scored.
 
     \b
-    Metrics: centre error (mean, median, max, px), precision at --threshold, success AUC
-    (mean success rate over IoU thresholds 0, 0.05, ..., 1), mean IoU, frames lost.
-    """
-    from .evaluate import evaluate, format_table, load_truth
+    Metrics: centre error (mean, median, max, px), precision at --threshold, success AUC,
+    mean IoU, frames lost, and outline IoU when the track CSV has outline columns and the
+    truth has outlines (a sample-data truth with its CLIP.outline.json beside it).
 
-    result = evaluate(pred, load_truth(truth, object_id=object_id), threshold=threshold,
-                      lost_threshold=lost_threshold)
-    if as_json:
-        _echo_json(_clean_json(result.to_dict()))
-    else:
-        click.echo(format_table(result))
+    \b
+    Success AUC follows the OTB convention: the mean, over the 21 overlap thresholds
+    t = 0, 0.05, ..., 1, of the fraction of frames with IoU > t.  No IoU exceeds 1, so a
+    perfect track scores 20/21 = 0.952, not 1.
+
+    \b
+    Examples:
+      trackcli eval out/test.condensation.csv sample_data/test.truth.csv
+      trackcli eval out/test.condensation.csv out/test.kalman.csv sample_data/test.truth.csv --plot pr.png
+    """
+    from .evaluate import coverage_notes, format_table, load_track, load_truth, score_frames, summarise
+
+    quiet = bool(ctx.find_root().obj and ctx.find_root().obj.get("quiet"))
+    gt = load_truth(truth, object_id=object_id)
+    labels = None
+    if plot_path or len(tracks) > 1:
+        from .plots import track_labels
+
+        labels = track_labels(tracks)
+    curves = []
+    for k, path in enumerate(tracks):
+        pred = load_track(path)
+        scores = score_frames(pred, gt, lost_threshold=lost_threshold)
+        result = summarise(scores, threshold=threshold)
+        notes = coverage_notes(pred, gt, scores)
+        if notes and not quiet:
+            click.echo(f"Warning: {'; '.join(notes)}", err=True)
+        if plot_path:
+            from .plots import curves as make_curves
+
+            curves.append(make_curves(labels[k], scores, threshold))
+        if as_json:
+            _echo_json(_clean_json({"kind": "eval", "track": str(path), "truth": str(truth), **result.to_dict(),
+                                    "warnings": notes}))
+        else:
+            if len(tracks) > 1:
+                click.echo(("\n" if k else "") + f"== {labels[k]} ({path})")
+            click.echo(format_table(result))
+    if plot_path:
+        from .plots import write_plots
+
+        out = write_plots(plot_path, curves, threshold=threshold)
+        if not as_json:
+            click.echo(f"wrote {out}")
 
 
 # ---------------------------------------------------------------------------------------------
