@@ -46,7 +46,8 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
       draw    make a B-spline template around the object in one frame
       learn   track training clips with a Kalman contour tracker and learn AR(2) dynamics
       track   follow the object in test footage with CONDENSATION (or Kalman)
-      eval    score estimates against ground truth
+      eval    score estimates against ground truth (and plot them)
+      render  draw the estimated outline on the frames: video, PNGs, contact sheet
       batch   run many clips from a manifest, locally or on a Dask cluster
 
     Every run writes a Rerun recording (.rrd) and CSV files of the estimates.
@@ -607,6 +608,67 @@ def eval_cmd(ctx, tracks, truth, threshold, lost_threshold, object_id, plot_path
         out = write_plots(plot_path, curves, threshold=threshold)
         if not as_json:
             click.echo(f"wrote {out}")
+
+
+# ---------------------------------------------------------------------------------------------
+# render
+
+
+@cli.command("render")
+@click.argument("track", type=click.Path(dir_okay=False))
+@click.argument("clip", type=click.Path())
+@click.option("-o", "--output", type=click.Path(),
+              help="Output file or folder (default beside TRACK: NAME.mp4, NAME.sheet.png or NAME_frames/).")
+@click.option("--sheet", "sheet", type=click.IntRange(min=1, max=400),
+              help="Write a contact sheet (PNG) of this many frames spread over the selection, instead of a video.")
+@click.option("--png", "png", is_flag=True, help="Write one PNG per frame into a folder, instead of a video.")
+@click.option("--tile-width", type=click.IntRange(min=32, max=4000), default=240, show_default=True,
+              help="Width of each contact-sheet frame (px; frames are only shrunk).")
+@click.option("--truth", type=click.Path(), help="Ground truth (as for eval) whose box is drawn in green.")
+@click.option("--object", "object_id", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Object id in a truth CSV with several objects.")
+@click.option("--no-label", is_flag=True, help="No frame number, LOST or confidence text on the frames.")
+@with_video_options
+@click.pass_context
+def render_cmd(ctx, track, clip, output, sheet, png, tile_width, truth, object_id, no_label, fps, start, end, step):
+    """Draw the estimated outline of TRACK (a track CSV) on the frames of CLIP.
+
+    CLIP is the video file or image folder that was tracked.  The outline comes from the
+    CSV's outline columns, so no model or template is needed.  By default the frames of the
+    track are drawn (--start/--end/--step select others) into an MP4 beside TRACK.  Lost
+    frames show the outline dashed in grey; with --truth the true box is drawn in green.
+
+    \b
+    Examples:
+      trackcli render out/test.condensation.csv sample_data/test.mp4
+      trackcli render out/test.condensation.csv sample_data/test.mp4 --sheet 12 -o sheet.png
+      trackcli render out/crossing.kalman.csv ../footage/crossing --png --truth ../footage/crossing
+    """
+    from .render import default_output, render
+
+    if sheet and png:
+        raise click.UsageError("give --sheet or --png, not both")
+    kind = "sheet" if sheet else ("frames" if png else "video")
+    out = output or default_output(track, kind)
+    gt = None
+    if truth:
+        from .evaluate import load_truth
+
+        gt = load_truth(truth, object_id=object_id)
+    bar_holder: dict = {}
+
+    def opened(n: int) -> None:
+        bar_holder["bar"] = _progress(ctx, n, "rendering").__enter__()
+
+    try:
+        result = render(track, clip, out, kind=kind, sheet_frames=sheet or 12, tile_width=tile_width, truth=gt,
+                        fps=fps, start=start, end=end, step=step, label=not no_label,
+                        progress=lambda k: bar_holder["bar"].update(k), on_open=opened)
+    finally:
+        if "bar" in bar_holder:
+            bar_holder["bar"].__exit__(None, None, None)
+    what = {"video": f"video ({result.codec})", "frames": "PNG frames", "sheet": "contact sheet"}[kind]
+    click.echo(f"wrote {result.output}: {what} of {result.frames} frames, {result.with_estimate} with an estimate")
 
 
 # ---------------------------------------------------------------------------------------------
