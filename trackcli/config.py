@@ -185,6 +185,11 @@ class LearningSettings:
 class OutputSettings:
     rrd: bool = _f(True, "bool", "write a Rerun recording (.rrd)")
     jpeg_quality: int = _f(80, "int", "JPEG quality of frames stored in recordings", lo=10, hi=100)
+    frames: str = _f("auto", "str", "how recordings store frames: jpeg (JPEG images, shown by every Rerun viewer), "
+                     "asset (the MP4 clip embedded as a video; the native viewer needs FFmpeg for H.264/H.265 "
+                     "and cannot play VP9), auto (asset only for AV1 clips, which the native viewer decodes by itself, else jpeg); "
+                     "a frame selection (--start/--end/--step) is always stored as JPEG",
+                     choices=("auto", "jpeg", "asset"))
     outline_points: int = _f(64, "int", "points of the estimated outline written to each row of the track CSV "
                              "(outline_x0, outline_y0, ...); 0 = none, otherwise at least 2", lo=0, hi=1000)
 

@@ -105,6 +105,7 @@ def run_clip(
     progress: Callable[[int], None] | None = None,
     recording_id: str | None = None,
     outline_points: int = 64,
+    frames_mode: str = "auto",
 ) -> RunSummary:
     """Track ``video`` with ``make_tracker(frames)`` and write the outputs.
 
@@ -119,6 +120,9 @@ def run_clip(
         Called with 1 after every frame (for a progress bar).
     outline_points : int
         Points of the estimated outline written to every CSV row (0: no outline columns).
+    frames_mode : {"auto", "jpeg", "asset"}
+        How the recording stores frames (``output.frames``, see
+        :func:`trackcli.recording.frame_storage`).
     """
     if outline_points == 1:
         raise ConfigError("output.outline_points: expected 0 (no outline) or at least 2 points, got 1")
@@ -144,9 +148,14 @@ def run_clip(
         with TrackWriter(csv_path, space.names, outline) as writer:
             if rec is not None:
                 rec.log_params("params", params)
+                from .recording import frame_storage
+
                 path = getattr(video, "path", None)
-                use_asset = getattr(video, "is_rerun_video_asset", lambda: False)()
-                log_frame = rec.frame_logger(path if use_asset else None, quality=jpeg_quality)
+                storage, why = frame_storage(frames_mode, codec=getattr(video, "codec", ""),
+                                             embeddable=getattr(video, "is_rerun_video_asset", lambda: False)(),
+                                             whole_clip=getattr(video, "whole_clip", False))
+                log.info("recording frames as %s: %s", storage.upper() if storage == "jpeg" else "a video asset", why)
+                log_frame = rec.frame_logger(path if storage == "asset" else None, quality=jpeg_quality)
             record_seconds = 0.0
             for r in results:
                 writer.write(r)
@@ -208,14 +217,16 @@ def _record_series(rec: Any, s: dict[str, list], hist_rows: list, hist_edges: An
         return
     f = np.asarray(s["frame"], dtype=np.int64)
     t = np.asarray(s["time"], dtype=float)
-    rec.send_series("series/translation", f, t, np.column_stack([s["tx"], s["ty"]]), names=["tx", "ty"])
-    rec.send_series("series/centroid", f, t, np.column_stack([s["cx"], s["cy"]]), names=["cx", "cy"])
-    rec.send_series("series/normals_with_feature", f, t, np.asarray(s["found"], dtype=float))
-    rec.send_series("series/gate_rms", f, t, np.asarray(s["gate"], dtype=float))
+    rec.send_series("series/translation", f, t, np.column_stack([s["tx"], s["ty"]]), names=["tx", "ty"], unit="px")
+    rec.send_series("series/centroid", f, t, np.column_stack([s["cx"], s["cy"]]), names=["cx", "cy"], unit="px")
+    rec.send_series("series/gate_rms", f, t, np.asarray(s["gate"], dtype=float), names="gate_rms", unit="px")
+    rec.send_series("series/normals_with_feature", f, t, np.asarray(s["found"], dtype=float),
+                    names="normals with a feature", unit="count")
     ess = np.asarray(s["ess"], dtype=float)
     if np.isfinite(ess).any():
-        rec.send_series("series/ess", f, t, ess)
-        rec.send_series("series/loglik", f, t, np.asarray(s["loglik"], dtype=float))
+        rec.send_series("series/ess", f, t, ess, names="ESS", unit="samples")
+        rec.send_series("series/loglik", f, t, np.asarray(s["loglik"], dtype=float), names="loglik",
+                        unit="log-likelihood")
     if hist_rows and hist_edges is not None:
         rec.log_histogram_image("histogram/tx_over_time", np.vstack(hist_rows), hist_edges)
 
@@ -394,4 +405,5 @@ def track_clip(
                             rrd_path=Path(f"{base}.rrd") if (rrd and settings.output.rrd) else None,
                             params=params, jpeg_quality=settings.output.jpeg_quality,
                             progress=bar.update, recording_id=f"{name}-{tracker}-{settings.seed}",
-                            outline_points=settings.output.outline_points)
+                            outline_points=settings.output.outline_points,
+                            frames_mode=settings.output.frames)

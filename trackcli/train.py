@@ -118,6 +118,7 @@ def train(
                                    params={"cycle": cycle, "clip": str(video.path), "settings": to_dict(settings)},
                                    jpeg_quality=settings.output.jpeg_quality, progress=bar.update,
                                    outline_points=settings.output.outline_points,
+                                   frames_mode=settings.output.frames,
                                    recording_id=f"{stem}-cycle{cycle}")
             rec.runs.append(summary)
             _, X, _ = read_track(summary.csv, space.names)
