@@ -48,6 +48,7 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
       track   follow the object in test footage with CONDENSATION (or Kalman)
       eval    score estimates against ground truth (and plot them)
       render  draw the estimated outline on the frames: video, PNGs, contact sheet
+      view    open a recording in the Rerun viewer
       batch   run many clips from a manifest, locally or on a Dask cluster
 
     Every run writes a Rerun recording (.rrd) and CSV files of the estimates.
@@ -669,6 +670,32 @@ def render_cmd(ctx, track, clip, output, sheet, png, tile_width, truth, object_i
             bar_holder["bar"].__exit__(None, None, None)
     what = {"video": f"video ({result.codec})", "frames": "PNG frames", "sheet": "contact sheet"}[kind]
     click.echo(f"wrote {result.output}: {what} of {result.frames} frames, {result.with_estimate} with an estimate")
+
+
+# ---------------------------------------------------------------------------------------------
+# view
+
+
+@cli.command("view")
+@click.argument("recording", type=click.Path(dir_okay=False))
+@click.option("--web", is_flag=True, help="Serve the web viewer over HTTP instead (for machines without a screen); "
+              "open the printed address in a browser.")
+@click.option("--port", type=click.IntRange(min=1, max=65535), help="Port of the web viewer (with --web).")
+def view_cmd(recording, web, port):
+    """Open RECORDING (.rrd) in the Rerun viewer.
+
+    Runs the native viewer that comes with trackcli's rerun-sdk (the 'rerun' program) and
+    waits until it is closed.  Without a screen (DISPLAY unset), says so and what to do
+    instead: --web, or copying the file to a machine with rerun-sdk 0.41 installed.
+    """
+    from .viewer import check_recording, run_viewer, viewer_command
+
+    if port is not None and not web:
+        raise click.UsageError("--port goes with --web")
+    cmd = viewer_command(check_recording(recording), web=web, port=port)
+    log.info("running %s", " ".join(cmd))
+    ctx = click.get_current_context()
+    ctx.exit(run_viewer(cmd))
 
 
 # ---------------------------------------------------------------------------------------------
