@@ -65,7 +65,7 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
 
 @cli.group("config")
 def config_group() -> None:
-    """Show, explain and check configuration files."""
+    """Show, explain, list and check configuration files and presets."""
 
 
 @config_group.command("show")
@@ -81,6 +81,21 @@ def config_show(file: str | None, comments: bool) -> None:
 
     settings = load_settings(file)
     click.echo(render_commented(settings) if comments else dump_yaml(settings), nl=False)
+
+
+@config_group.command("list")
+def config_list() -> None:
+    """List the preset configurations that ship with trackcli, with their purpose.
+
+    Use a preset by name from any folder: `trackcli track -c tight ...`.  A file of the
+    same name in the current folder wins over the preset.
+    """
+    from .config import preset_purpose, presets
+
+    found = presets()
+    width = max((len(n) for n in found), default=0)
+    for name, path in found.items():
+        click.echo(f"{name:<{width}}  {preset_purpose(path)}")
 
 
 @config_group.command("check")
@@ -253,7 +268,8 @@ def _video_overrides(fps, start, end, step) -> dict:
 
 @cli.command("track")
 @click.argument("clips", nargs=-1, required=True, type=click.Path())
-@click.option("-c", "--config", type=click.Path(dir_okay=False), help="Configuration file (YAML).")
+@click.option("-c", "--config", type=click.Path(dir_okay=False),
+              help="Configuration file (YAML) or preset name (`trackcli config list`).")
 @click.option("--model", type=click.Path(dir_okay=False), help="Model learned by `trackcli learn`.")
 @click.option("--template", type=click.Path(dir_okay=False),
               help="Template drawn on this clip: the initial placement (with --model) or, alone, "
@@ -331,7 +347,8 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
 
 @cli.command("learn")
 @click.argument("clips", nargs=-1, type=click.Path())
-@click.option("-c", "--config", type=click.Path(dir_okay=False), help="Configuration file (YAML).")
+@click.option("-c", "--config", type=click.Path(dir_okay=False),
+              help="Configuration file (YAML) or preset name (`trackcli config list`).")
 @click.option("--template", type=click.Path(dir_okay=False), required=True,
               help="Template drawn on the (first) training clip.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Model file to write (.yaml).")
