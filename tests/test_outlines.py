@@ -237,3 +237,21 @@ def test_plot_curves_are_drawn_where_the_scores_say():
     blue = (img[..., 0] > 150) & (img[..., 2] < 80)
     rows = np.flatnonzero(blue[:, 100:480].any(axis=1))
     assert rows.size and rows.min() < 60
+
+
+def test_track_json_has_kind_and_rounded_floats(tmp_path, ellipse_clip, caplog):
+    import logging
+
+    caplog.set_level(logging.INFO, logger="trackcli")
+    tmpl = tmp_path / "e.yaml"
+    run(["draw", ellipse_clip, "--ellipse", "70,60,28,36", "-o", tmpl], 0)
+    result = run(["-v", "track", ellipse_clip, "--template", tmpl, "--particles", "40", "--seed", "3", "--no-rrd",
+                  "--json", "-o", tmp_path], 0)
+    data = json.loads(result.stdout)
+    assert data["kind"] == "track" and data["frames"] == CLIP_FRAMES
+    floats = [v for v in data.values() if isinstance(v, float)]
+    assert floats and all(len(repr(v).lstrip("-").replace(".", "").lstrip("0").split("e")[0]) <= 6 for v in floats)
+    # -v says where the settings, the start and the sampling came from
+    for text in ("settings: the defaults, options condensation.particles=40, seed=3", "initial shape X0",
+                 "seed 3; samples", "frames decoded"):
+        assert text in caplog.text, text

@@ -232,15 +232,18 @@ def _json_default(o):
     return str(o)
 
 
-def _clean_json(d):
+def _clean_json(d, digits: int | None = None):
+    """NaN and infinities become null; with ``digits``, floats keep that many significant digits."""
     import math
 
     if isinstance(d, dict):
-        return {k: _clean_json(v) for k, v in d.items()}
+        return {k: _clean_json(v, digits) for k, v in d.items()}
     if isinstance(d, (list, tuple)):
-        return [_clean_json(v) for v in d]
+        return [_clean_json(v, digits) for v in d]
     if isinstance(d, float) and not math.isfinite(d):
         return None
+    if isinstance(d, float) and digits is not None:
+        return float(f"{d:.{digits}g}")
     return d
 
 
@@ -309,8 +312,12 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
 
     if not model and not template:
         raise click.UsageError("give --model, --template, or both")
-    settings = _settings(config, {"condensation.particles": particles, "seed": seed,
-                                  **_video_overrides(fps, start, end, step)})
+    overrides = {"condensation.particles": particles, "seed": seed, **_video_overrides(fps, start, end, step)}
+    settings = _settings(config, overrides)
+    given = [f"{k}={v}" for k, v in overrides.items() if v is not None]
+    log.info("settings: %s%s%s", f"config {config}" if config else "the defaults",
+             f", options {', '.join(given)}" if given else "", f"; dynamics and shape-space from model {model}"
+             if model else "")
     out = ensure_dir(outdir)
     stems = [clip_name(c) for c in clips]
     if len(set(stems)) != len(stems):
@@ -333,7 +340,7 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
             click.echo(f"Error: {clip}: {exc}", err=True)
             continue
         if as_json:
-            _echo_json(_clean_json(summary.to_dict()))
+            _echo_json(_clean_json({"kind": "track", **summary.to_dict()}, digits=6))
         else:
             click.echo(summary.line())
     if failures:
@@ -615,7 +622,7 @@ def eval_cmd(ctx, tracks, truth, threshold, lost_threshold, object_id, plot_path
             curves.append(make_curves(labels[k], scores, threshold))
         if as_json:
             _echo_json(_clean_json({"kind": "eval", "track": str(path), "truth": str(truth), **result.to_dict(),
-                                    "warnings": notes}))
+                                    "warnings": notes}, digits=6))
         else:
             if len(tracks) > 1:
                 click.echo(("\n" if k else "") + f"== {labels[k]} ({path})")

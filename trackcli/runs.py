@@ -397,13 +397,32 @@ def track_clip(
                 return tracking.track_condensation(frames, space, dynamics, settings.measurement,
                                                    settings.condensation, rng, X0=X0)
         base = output_base(out, name, tracker)
+        _log_setup(name, tracker, setup, settings, video)
         write_text(Path(f"{base}.config.yaml"), dump_yaml(settings))
         params = {"clip": str(clip), "tracker": tracker, "source": setup.source, "settings": to_dict(settings)}
         bar_ctx = progress(f"{name} ({tracker})", len(video)) if progress else contextlib.nullcontext(_NullBar())
         with bar_ctx as bar:
-            return run_clip(video, make, space, tracker=tracker, csv_path=Path(f"{base}.csv"),
+            summary = run_clip(video, make, space, tracker=tracker, csv_path=Path(f"{base}.csv"),
                             rrd_path=Path(f"{base}.rrd") if (rrd and settings.output.rrd) else None,
                             params=params, jpeg_quality=settings.output.jpeg_quality,
                             progress=bar.update, recording_id=f"{name}-{tracker}-{settings.seed}",
                             outline_points=settings.output.outline_points,
                             frames_mode=settings.output.frames)
+        log.info("%s: %d frames decoded in %.2f s, tracked in %.2f s", name, summary.frames, summary.decode_seconds,
+                 summary.tracker_seconds)
+        return summary
+
+
+def _log_setup(name: str, tracker: str, setup: TrackingSetup, settings: Settings, video: Any) -> None:
+    """What ``-v`` tells about a clip before it runs: what is tracked, where it starts, the sampling."""
+    r = video.indices
+    log.info("%s: %s tracker on %s, frames %d-%d step %d (%d frames), %.3g frames/s", name, tracker, video.path,
+             r.start, r.stop - 1, r.step, len(r), video.fps)
+    log.info("%s: tracking %s; shape-space %s (%d components)", name, setup.source, setup.space.kind,
+             setup.space.Nx)
+    x0 = ", ".join(f"{n}={v:.3g}" for n, v in zip(setup.space.names, setup.X0))
+    log.info("%s: initial shape X0: %s", name, x0)
+    if tracker == "condensation":
+        c = settings.condensation
+        log.info("%s: seed %d; samples %d falling to %d over %d frames; likelihood %s, init %s", name,
+                 settings.seed, c.initial_particles, c.particles, c.schedule_frames, c.likelihood, c.init)
