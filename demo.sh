@@ -25,11 +25,15 @@ $T track -c $C --tracker kalman --model "$OUT/head-model.yaml" --template "$OUT/
 echo "== 4/5 eval: both against the ground truth (lost = centroid more than 8 px off)"
 echo "-- CONDENSATION"; $T eval "$OUT/test.condensation.csv" sample_data/test.truth.csv --lost-threshold 8
 echo "-- Kalman";        $T eval "$OUT/test.kalman.csv" sample_data/test.truth.csv --lost-threshold 8
+echo "-- both, as precision and success plots; and a contact sheet of the CONDENSATION track"
+$T eval "$OUT/test.condensation.csv" "$OUT/test.kalman.csv" sample_data/test.truth.csv --plot "$OUT/test.plots.png" > /dev/null
+$T render "$OUT/test.condensation.csv" sample_data/test.mp4 --sheet 8 --tile-width 200 \
+    --truth sample_data/test.truth.csv -o "$OUT/test.condensation.sheet.png"
 
 echo "== 5/5 multi-modal: three similar heads; the translation histogram keeps a peak at each"
 $T track -c configs/three-heads.yaml --template "$OUT/head.yaml" sample_data/three_heads.mp4 -o "$OUT" --seed 0
 
 echo
-echo "Recordings (open with the Rerun viewer, e.g. 'rerun $OUT/test.condensation.rrd'):"
+echo "Recordings (open one with 'trackcli view $OUT/test.condensation.rrd'):"
 ls -1 "$OUT"/*.rrd "$OUT"/head-model_training/*.rrd
-echo "Estimates (CSV): $OUT/*.csv"
+echo "Estimates (CSV): $OUT/*.csv; pictures: $OUT/test.plots.png, $OUT/test.condensation.sheet.png"

@@ -357,3 +357,44 @@ def test_valid_settings_round_trip_through_yaml(data):
     assert to_dict(s) == data
     assert settings_from_dict(yaml.safe_load(render_commented(s))) == s
     assert settings_from_dict(yaml.safe_load(dump_yaml(s))) == s
+
+
+# ---------------------------------------------------------------------------------------------
+# Presets by name
+
+
+def test_presets_are_the_configs_folder_and_list_their_purpose():
+    from click.testing import CliRunner
+
+    from trackcli.cli import cli
+    from trackcli.config import PRESETS_DIR, presets
+
+    assert PRESETS_DIR.resolve() == CONFIGS.resolve()
+    names = sorted(p.stem for p in CONFIGS.glob("*.yaml"))
+    assert list(presets()) == names and "tight" in names
+    result = CliRunner().invoke(cli, ["config", "list"])
+    assert result.exit_code == 0
+    lines = result.stdout.splitlines()
+    assert [ln.split()[0] for ln in lines] == names
+    tight = next(ln for ln in lines if ln.startswith("tight"))
+    assert "third worked case of Active Contours" in tight
+
+
+def test_preset_by_name_from_any_folder(tmp_path, monkeypatch):
+    from click.testing import CliRunner
+
+    from trackcli.cli import cli
+
+    monkeypatch.chdir(tmp_path)
+    for name in ("tight", "tight.yaml"):
+        s = load_settings(name)
+        assert s.kalman.kappa == 1.2 and s.measurement.polarity == "any"
+    result = CliRunner().invoke(cli, ["config", "show", "tight"])
+    assert result.exit_code == 0 and "kappa: 1.2" in result.stdout
+    # a file of that name here wins over the preset
+    (tmp_path / "tight.yaml").write_text("kalman: {kappa: 3.0}\n")
+    assert load_settings("tight.yaml").kalman.kappa == 3.0
+    with pytest.raises(ConfigError, match=r"nosuch: no such configuration file or preset \(presets: .*tight"):
+        load_settings("nosuch")
+    with pytest.raises(ConfigError, match="no such configuration file or preset"):
+        load_settings("sub/tight.yaml")

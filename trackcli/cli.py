@@ -46,7 +46,9 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
       draw    make a B-spline template around the object in one frame
       learn   track training clips with a Kalman contour tracker and learn AR(2) dynamics
       track   follow the object in test footage with CONDENSATION (or Kalman)
-      eval    score estimates against ground truth
+      eval    score estimates against ground truth (and plot them)
+      render  draw the estimated outline on the frames: video, PNGs, contact sheet
+      view    open a recording in the Rerun viewer
       batch   run many clips from a manifest, locally or on a Dask cluster
 
     Every run writes a Rerun recording (.rrd) and CSV files of the estimates.
@@ -63,7 +65,7 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
 
 @cli.group("config")
 def config_group() -> None:
-    """Show, explain and check configuration files."""
+    """Show, explain, list and check configuration files and presets."""
 
 
 @config_group.command("show")
@@ -79,6 +81,21 @@ def config_show(file: str | None, comments: bool) -> None:
 
     settings = load_settings(file)
     click.echo(render_commented(settings) if comments else dump_yaml(settings), nl=False)
+
+
+@config_group.command("list")
+def config_list() -> None:
+    """List the preset configurations that ship with trackcli, with their purpose.
+
+    Use a preset by name from any folder: `trackcli track -c tight ...`.  A file of the
+    same name in the current folder wins over the preset.
+    """
+    from .config import preset_purpose, presets
+
+    found = presets()
+    width = max((len(n) for n in found), default=0)
+    for name, path in found.items():
+        click.echo(f"{name:<{width}}  {preset_purpose(path)}")
 
 
 @config_group.command("check")
@@ -234,15 +251,18 @@ def _json_default(o):
     return str(o)
 
 
-def _clean_json(d):
+def _clean_json(d, digits: int | None = None):
+    """NaN and infinities become null; with ``digits``, floats keep that many significant digits."""
     import math
 
     if isinstance(d, dict):
-        return {k: _clean_json(v) for k, v in d.items()}
+        return {k: _clean_json(v, digits) for k, v in d.items()}
     if isinstance(d, (list, tuple)):
-        return [_clean_json(v) for v in d]
+        return [_clean_json(v, digits) for v in d]
     if isinstance(d, float) and not math.isfinite(d):
         return None
+    if isinstance(d, float) and digits is not None:
+        return float(f"{d:.{digits}g}")
     return d
 
 
@@ -270,7 +290,8 @@ def _video_overrides(fps, start, end, step) -> dict:
 
 @cli.command("track")
 @click.argument("clips", nargs=-1, required=True, type=click.Path())
-@click.option("-c", "--config", type=click.Path(dir_okay=False), help="Configuration file (YAML).")
+@click.option("-c", "--config", type=click.Path(dir_okay=False),
+              help="Configuration file (YAML) or preset name (`trackcli config list`).")
 @click.option("--model", type=click.Path(dir_okay=False), help="Model learned by `trackcli learn`.")
 @click.option("--template", type=click.Path(dir_okay=False),
               help="Template drawn on this clip: the initial placement (with --model) or, alone, "
@@ -317,6 +338,10 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
     overrides = {"condensation.particles": particles, "seed": seed, **_video_overrides(fps, start, end, step)}
     settings = _settings(config, overrides)
     explicit = _explicit_keys(config, overrides) if model else None
+    given = [f"{k}={v}" for k, v in overrides.items() if v is not None]
+    log.info("settings: %s%s%s", f"config {config}" if config else "the defaults",
+             f", options {', '.join(given)}" if given else "", f"; dynamics and shape-space from model {model}"
+             if model else "")
     out = ensure_dir(outdir)
     stems = [clip_name(c) for c in clips]
     if len(set(stems)) != len(stems):
@@ -339,7 +364,7 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
             click.echo(f"Error: {clip}: {exc}", err=True)
             continue
         if as_json:
-            _echo_json(_clean_json(summary.to_dict()))
+            _echo_json(_clean_json({"kind": "track", **summary.to_dict()}, digits=6))
         else:
             click.echo(summary.line())
     if failures:
@@ -353,7 +378,8 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
 
 @cli.command("learn")
 @click.argument("clips", nargs=-1, type=click.Path())
-@click.option("-c", "--config", type=click.Path(dir_okay=False), help="Configuration file (YAML).")
+@click.option("-c", "--config", type=click.Path(dir_okay=False),
+              help="Configuration file (YAML) or preset name (`trackcli config list`).")
 @click.option("--template", type=click.Path(dir_okay=False), required=True,
               help="Template drawn on the (first) training clip.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Model file to write (.yaml).")
@@ -604,7 +630,7 @@ def simulate_cmd(model_path, n_frames, n_paths, seed, output, size):
 
 
 @cli.command("eval")
-@click.argument("pred", type=click.Path(dir_okay=False))
+@click.argument("tracks", nargs=-1, required=True, type=click.Path(dir_okay=False), metavar="PRED...")
 @click.argument("truth", type=click.Path())
 @click.option("--threshold", type=click.FloatRange(min=0, min_open=True), default=20.0, show_default=True,
               help="Centre-error threshold (px) for precision.")
@@ -612,26 +638,154 @@ def simulate_cmd(model_path, n_frames, n_paths, seed, output, size):
               help="Also count a frame lost when its centre error exceeds this (px).")
 @click.option("--object", "object_id", type=click.IntRange(min=0), default=0, show_default=True,
               help="Object id in a trackcli truth CSV with several objects.")
-@click.option("--json", "as_json", is_flag=True, help="Print the scores as one JSON object.")
-def eval_cmd(pred, truth, threshold, lost_threshold, object_id, as_json):
-    """Score estimates PRED (a track CSV) against ground truth TRUTH.
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
+              help="Write the precision plot (0-50 px) and the success plot (IoU 0-1) of all PRED to this PNG.")
+@click.option("--json", "as_json", is_flag=True, help="Print the scores as one JSON object per PRED.")
+@click.pass_context
+def eval_cmd(ctx, tracks, truth, threshold, lost_threshold, object_id, plot_path, as_json):
+    """Score estimates PRED (one or more track CSVs) against ground truth TRUTH.
 
     TRUTH is a trackcli truth CSV (sample_data/*.truth.csv), a benchmark box file (one
     'x,y,w,h' line per frame, comma or whitespace separated), or a folder holding
-    groundtruth_rect.txt / groundtruth.txt.
+    groundtruth_rect.txt / groundtruth.txt.  Frames are matched by index; when a track and
+    the truth cover different frames, a warning says which frames were scored.
 
     \b
-    Metrics: centre error (mean, median, max, px), precision at --threshold, success AUC
-    (mean success rate over IoU thresholds 0, 0.05, ..., 1), mean IoU, frames lost.
-    """
-    from .evaluate import evaluate, format_table, load_truth
+    Metrics: centre error (mean, median, max, px), precision at --threshold, success AUC,
+    mean IoU, frames lost, and outline IoU when the track CSV has outline columns and the
+    truth has outlines (a sample-data truth with its CLIP.outline.json beside it).
 
-    result = evaluate(pred, load_truth(truth, object_id=object_id), threshold=threshold,
-                      lost_threshold=lost_threshold)
-    if as_json:
-        _echo_json(_clean_json(result.to_dict()))
-    else:
-        click.echo(format_table(result))
+    \b
+    Success AUC follows the OTB convention: the mean, over the 21 overlap thresholds
+    t = 0, 0.05, ..., 1, of the fraction of frames with IoU > t.  No IoU exceeds 1, so a
+    perfect track scores 20/21 = 0.952, not 1.
+
+    \b
+    Examples:
+      trackcli eval out/test.condensation.csv sample_data/test.truth.csv
+      trackcli eval out/test.condensation.csv out/test.kalman.csv sample_data/test.truth.csv --plot pr.png
+    """
+    from .evaluate import coverage_notes, format_table, load_track, load_truth, score_frames, summarise
+
+    quiet = bool(ctx.find_root().obj and ctx.find_root().obj.get("quiet"))
+    gt = load_truth(truth, object_id=object_id)
+    labels = None
+    if plot_path or len(tracks) > 1:
+        from .plots import track_labels
+
+        labels = track_labels(tracks)
+    curves = []
+    for k, path in enumerate(tracks):
+        pred = load_track(path)
+        scores = score_frames(pred, gt, lost_threshold=lost_threshold)
+        result = summarise(scores, threshold=threshold)
+        notes = coverage_notes(pred, gt, scores)
+        if notes and not quiet:
+            click.echo(f"Warning: {'; '.join(notes)}", err=True)
+        if plot_path:
+            from .plots import curves as make_curves
+
+            curves.append(make_curves(labels[k], scores, threshold))
+        if as_json:
+            _echo_json(_clean_json({"kind": "eval", "track": str(path), "truth": str(truth), **result.to_dict(),
+                                    "warnings": notes}, digits=6))
+        else:
+            if len(tracks) > 1:
+                click.echo(("\n" if k else "") + f"== {labels[k]} ({path})")
+            click.echo(format_table(result))
+    if plot_path:
+        from .plots import write_plots
+
+        out = write_plots(plot_path, curves, threshold=threshold)
+        if not as_json:
+            click.echo(f"wrote {out}")
+
+
+# ---------------------------------------------------------------------------------------------
+# render
+
+
+@cli.command("render")
+@click.argument("track", type=click.Path(dir_okay=False))
+@click.argument("clip", type=click.Path())
+@click.option("-o", "--output", type=click.Path(),
+              help="Output file or folder (default beside TRACK: NAME.mp4, NAME.sheet.png or NAME_frames/).")
+@click.option("--sheet", "sheet", type=click.IntRange(min=1, max=400),
+              help="Write a contact sheet (PNG) of this many frames spread over the selection, instead of a video.")
+@click.option("--png", "png", is_flag=True, help="Write one PNG per frame into a folder, instead of a video.")
+@click.option("--tile-width", type=click.IntRange(min=32, max=4000), default=240, show_default=True,
+              help="Width of each contact-sheet frame (px; frames are only shrunk).")
+@click.option("--truth", type=click.Path(), help="Ground truth (as for eval) whose box is drawn in green.")
+@click.option("--object", "object_id", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Object id in a truth CSV with several objects.")
+@click.option("--no-label", is_flag=True, help="No frame number, LOST or confidence text on the frames.")
+@with_video_options
+@click.pass_context
+def render_cmd(ctx, track, clip, output, sheet, png, tile_width, truth, object_id, no_label, fps, start, end, step):
+    """Draw the estimated outline of TRACK (a track CSV) on the frames of CLIP.
+
+    CLIP is the video file or image folder that was tracked.  The outline comes from the
+    CSV's outline columns, so no model or template is needed.  By default the frames of the
+    track are drawn (--start/--end/--step select others) into an MP4 beside TRACK.  Lost
+    frames show the outline dashed in grey; with --truth the true box is drawn in green.
+
+    \b
+    Examples:
+      trackcli render out/test.condensation.csv sample_data/test.mp4
+      trackcli render out/test.condensation.csv sample_data/test.mp4 --sheet 12 -o sheet.png
+      trackcli render out/crossing.kalman.csv ../footage/crossing --png --truth ../footage/crossing
+    """
+    from .render import default_output, render
+
+    if sheet and png:
+        raise click.UsageError("give --sheet or --png, not both")
+    kind = "sheet" if sheet else ("frames" if png else "video")
+    out = output or default_output(track, kind)
+    gt = None
+    if truth:
+        from .evaluate import load_truth
+
+        gt = load_truth(truth, object_id=object_id)
+    bar_holder: dict = {}
+
+    def opened(n: int) -> None:
+        bar_holder["bar"] = _progress(ctx, n, "rendering").__enter__()
+
+    try:
+        result = render(track, clip, out, kind=kind, sheet_frames=sheet or 12, tile_width=tile_width, truth=gt,
+                        fps=fps, start=start, end=end, step=step, label=not no_label,
+                        progress=lambda k: bar_holder["bar"].update(k), on_open=opened)
+    finally:
+        if "bar" in bar_holder:
+            bar_holder["bar"].__exit__(None, None, None)
+    what = {"video": f"video ({result.codec})", "frames": "PNG frames", "sheet": "contact sheet"}[kind]
+    click.echo(f"wrote {result.output}: {what} of {result.frames} frames, {result.with_estimate} with an estimate")
+
+
+# ---------------------------------------------------------------------------------------------
+# view
+
+
+@cli.command("view")
+@click.argument("recording", type=click.Path(dir_okay=False))
+@click.option("--web", is_flag=True, help="Serve the web viewer over HTTP instead (for machines without a screen); "
+              "open the printed address in a browser.")
+@click.option("--port", type=click.IntRange(min=1, max=65535), help="Port of the web viewer (with --web).")
+def view_cmd(recording, web, port):
+    """Open RECORDING (.rrd) in the Rerun viewer.
+
+    Runs the native viewer that comes with trackcli's rerun-sdk (the 'rerun' program) and
+    waits until it is closed.  Without a screen (DISPLAY unset), says so and what to do
+    instead: --web, or copying the file to a machine with rerun-sdk 0.41 installed.
+    """
+    from .viewer import check_recording, run_viewer, viewer_command
+
+    if port is not None and not web:
+        raise click.UsageError("--port goes with --web")
+    cmd = viewer_command(check_recording(recording), web=web, port=port)
+    log.info("running %s", " ".join(cmd))
+    ctx = click.get_current_context()
+    ctx.exit(run_viewer(cmd))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -199,6 +199,13 @@ class LearningSettings:
 class OutputSettings:
     rrd: bool = _f(True, "bool", "write a Rerun recording (.rrd)")
     jpeg_quality: int = _f(80, "int", "JPEG quality of frames stored in recordings", lo=10, hi=100)
+    frames: str = _f("auto", "str", "how recordings store frames: jpeg (JPEG images, shown by every Rerun viewer), "
+                     "asset (the MP4 clip embedded as a video; the native viewer needs FFmpeg for H.264/H.265 "
+                     "and cannot play VP9), auto (asset only for AV1 clips, which the native viewer decodes by itself, else jpeg); "
+                     "a frame selection (--start/--end/--step) is always stored as JPEG",
+                     choices=("auto", "jpeg", "asset"))
+    outline_points: int = _f(64, "int", "points of the estimated outline written to each row of the track CSV "
+                             "(outline_x0, outline_y0, ...); 0 = none, otherwise at least 2", lo=0, hi=1000)
 
 
 @dataclass(frozen=True)
@@ -270,11 +277,59 @@ def _deep_copy(d: Any) -> Any:
     return d
 
 
+#: Folder of the preset configurations shipped with the package (``configs/`` of the source tree).
+PRESETS_DIR = Path(__file__).resolve().parent / "configs"
+
+
+def presets() -> dict[str, Path]:
+    """The preset configurations by name (``tight`` for ``configs/tight.yaml``), sorted."""
+    if not PRESETS_DIR.is_dir():
+        return {}
+    return {p.stem: p for p in sorted(PRESETS_DIR.glob("*.yaml"))}
+
+
+def preset_purpose(path: str | Path) -> str:
+    """The one-line purpose of a preset: the first sentence of its leading comment."""
+    lines = []
+    for line in Path(path).read_text(encoding="utf-8").splitlines():
+        if not line.startswith("#"):
+            break
+        text = line.lstrip("#").strip()
+        if not text:
+            if lines:
+                break
+            continue
+        lines.append(text)
+    para = " ".join(lines)
+    end = para.find(". ")
+    return para if end < 0 else para[: end + 1]
+
+
+def resolve_config(name: str | Path) -> Path:
+    """A configuration file: ``name`` itself when it is a file, else the preset of that name.
+
+    ``-c tight`` and ``-c tight.yaml`` mean the preset ``tight`` unless a file of that name
+    exists in the current folder; a missing file that is no preset is a ConfigError listing
+    the presets.
+    """
+    p = Path(name)
+    if p.is_file():
+        return p
+    key = p.name[:-5] if p.name.endswith(".yaml") else p.name
+    known = presets()
+    if p.parent == Path(".") and key in known:
+        return known[key]
+    if p.exists():
+        return p  # a folder: read_yaml_file says so
+    hint = f" (presets: {', '.join(known)}; see `trackcli config list`)" if known else ""
+    raise ConfigError(f"{name}: no such configuration file or preset{hint}")
+
+
 def read_yaml(path: str | Path) -> dict[str, Any]:
-    """Read a configuration file into a plain mapping, with one-line errors."""
+    """Read a configuration file (or preset, see :func:`resolve_config`) into a mapping, with one-line errors."""
     from .outputs import read_yaml_file
 
-    p = Path(path)
+    p = resolve_config(path)
     data = read_yaml_file(p, "configuration", ConfigError)
     if data is None:
         return {}

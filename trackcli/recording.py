@@ -23,11 +23,26 @@ Entity layout shared by all commands (the saved blueprints expect it):
   trackcli).  The frame itself is logged at ``video``; overlays go below it
   (``video/estimate``, ``video/particles``, ``video/normals`` …) so they share its
   coordinates.  Commands without frames (``simulate``) still draw curves there.
-- ``series/…`` — scalar time series (translation, ESS, gate width …).
+- ``series/…`` — scalar time series (translation, ESS, gate width …), each logged with a
+  unit; the saved layout plots the series of one unit together and never mixes units on one
+  axis.
 - ``histogram/…`` — bar charts per frame and the static "histogram over time" image
   (time × bins heat-map, cf. paper 000 Fig 3, where multi-modality shows as several
   bright ridges).
 - ``params`` — the run's settings; ``log`` — text messages.
+
+The saved layout (blueprint) is written when the recording closes and holds only views that
+have data: a Kalman run has no histogram tab, a run without text messages no log tab.
+
+Frames
+------
+How frames are stored is chosen by :func:`frame_storage` (setting ``output.frames``).  The
+native Rerun viewer (0.41) decodes only AV1 video by itself; H.264 and H.265 need an FFmpeg
+(>= 5.1) on the viewer's PATH, and VP9 plays only in the web viewer (Rerun docs, "Video",
+codec support table).  JPEG frames (``EncodedImage``) show in every viewer, so they are the
+default; a clip is embedded as a video asset only when asked, or (``auto``) when it is AV1.
+An asset always holds the whole file, so it is used only when every frame of the clip is
+recorded; a selection (``--start/--end/--step``) stores only its own frames, as JPEG.
 
 Timelines: ``frame`` (sequence, the frame index) and ``video_time`` (duration, seconds
 from the start of the clip).  The wall-clock ``log_time`` timeline is switched off: it
@@ -55,6 +70,12 @@ PARAMS = "params"
 TEXT_LOG = "log"
 
 BLUEPRINTS = ("track", "draw", "simulate")
+FRAME_STORAGE = ("auto", "jpeg", "asset")
+#: Codecs (OpenCV FOURCC, lower case) the native viewer decodes without extra installs.
+NATIVE_VIEWER_CODECS = frozenset({"av01"})
+#: How series units are named in the layout, in the order their plots are stacked.
+UNIT_TITLES = {"px": "pixels", "count": "count", "samples": "effective sample size",
+               "log-likelihood": "log-likelihood"}
 TEXT_LEVELS = ("CRITICAL", "ERROR", "WARN", "INFO", "DEBUG", "TRACE")
 VIDEO_ASSET_SUFFIXES = (".mp4",)
 
@@ -125,14 +146,56 @@ def histogram_image(matrix: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(bgr[..., ::-1])
 
 
-def make_blueprint(kind: str | None) -> Any:
+def frame_storage(mode: str, *, codec: str, embeddable: bool, whole_clip: bool) -> tuple[str, str]:
+    """Decide how a clip's frames go into a recording: ``("jpeg" | "asset", reason)``.
+
+    Parameters
+    ----------
+    mode : {"auto", "jpeg", "asset"}
+        The ``output.frames`` setting.  ``jpeg``: always JPEG frames (every viewer shows
+        them).  ``asset``: embed the clip as an ``AssetVideo`` when Rerun accepts it (MP4 with
+        H.264, H.265, VP9 or AV1), whatever viewer may have to decode it.  ``auto``: embed only
+        a clip the native viewer decodes by itself (:data:`NATIVE_VIEWER_CODECS`, AV1).
+    codec : str
+        The clip's video codec as a FOURCC (``"vp09"``, ``"avc1"``, ``"av01"``; empty for
+        image folders).
+    embeddable : bool
+        Whether Rerun accepts the file as an asset (see ``Video.is_rerun_video_asset``).
+    whole_clip : bool
+        Whether every frame of the clip is recorded; an asset embeds the whole file, so a
+        selection is always stored as JPEG frames of the selected frames.
+    """
+    if mode not in FRAME_STORAGE:
+        raise ConfigError(f"output.frames: expected one of {', '.join(FRAME_STORAGE)}, got {mode!r}")
+    if mode == "jpeg":
+        return "jpeg", "output.frames is jpeg"
+    if not embeddable:
+        return "jpeg", "the clip is not an MP4 Rerun can embed"
+    if not whole_clip:
+        return "jpeg", "only part of the clip is recorded (an asset would embed all of it)"
+    c = codec.strip().lower()
+    if mode == "auto" and c not in NATIVE_VIEWER_CODECS:
+        return "jpeg", (f"codec {c or '?'} needs FFmpeg or a web viewer to play in Rerun; "
+                        "set output.frames: asset to embed it anyway")
+    return "asset", f"codec {c or '?'} embedded as a video asset"
+
+
+def make_blueprint(kind: str | None, content: Mapping[str, Any] | None = None) -> Any:
     """The saved layout for a command: ``"track"``, ``"draw"``, ``"simulate"`` or None.
 
-    - ``track``: a large 2-D view of ``video`` with its overlays; beside it the
-      ``series`` time series above tabs for the translation histogram (bar chart and
-      over-time image), the parameters and the text log.
+    - ``track``: a large 2-D view of ``video`` with its overlays; beside it the time series,
+      one plot per unit, above tabs for the translation histogram (bar chart and over-time
+      image), the parameters and the text log.
     - ``draw``: the 2-D view only.
     - ``simulate``: the 2-D view and the time series.
+
+    Parameters
+    ----------
+    kind : str or None
+    content : mapping, optional
+        What was logged (see :meth:`Recording.content`): ``series`` (a mapping of unit, or
+        None, to entity paths) and ``roots`` (top-level entities with data).  Views without
+        data are left out.  None: every view of the layout.
 
     Returns a ``rerun.blueprint.Blueprint``, or None when ``kind`` is None (the viewer
     then lays the recording out by itself).
@@ -146,20 +209,47 @@ def make_blueprint(kind: str | None) -> Any:
     image_view = rrb.Spatial2DView(origin=VIDEO, name="video")
     if kind == "draw":
         return rrb.Blueprint(image_view)
-    series_view = rrb.TimeSeriesView(origin=SERIES, name="time series")
+    if content is None:
+        series_views = [rrb.TimeSeriesView(origin=SERIES, name="time series")]
+        roots = {HISTOGRAM, PARAMS, TEXT_LOG}
+    else:
+        series_views = _series_views(content.get("series", {}))
+        roots = set(content.get("roots", ()))
     if kind == "simulate":
-        return rrb.Blueprint(rrb.Horizontal(image_view, series_view, column_shares=[1, 1]))
-    side = rrb.Vertical(
-        series_view,
-        rrb.Tabs(
-            rrb.BarChartView(origin=HISTOGRAM, name="histogram"),
-            rrb.Spatial2DView(origin=HISTOGRAM, name="histogram over time"),
-            rrb.TextDocumentView(origin=PARAMS, name="parameters"),
-            rrb.TextLogView(origin=TEXT_LOG, name="log"),
-        ),
-        row_shares=[1, 1],
-    )
+        if not series_views:
+            return rrb.Blueprint(image_view)
+        side = series_views[0] if len(series_views) == 1 else rrb.Vertical(*series_views)
+        return rrb.Blueprint(rrb.Horizontal(image_view, side, column_shares=[1, 1]))
+    tabs = []
+    if HISTOGRAM in roots:
+        tabs += [rrb.BarChartView(origin=HISTOGRAM, name="histogram"),
+                 rrb.Spatial2DView(origin=HISTOGRAM, name="histogram over time")]
+    if PARAMS in roots:
+        tabs.append(rrb.TextDocumentView(origin=PARAMS, name="parameters"))
+    if TEXT_LOG in roots:
+        tabs.append(rrb.TextLogView(origin=TEXT_LOG, name="log"))
+    side_parts = [*series_views] + ([rrb.Tabs(*tabs)] if tabs else [])
+    if not side_parts:
+        return rrb.Blueprint(image_view)
+    side = side_parts[0] if len(side_parts) == 1 else rrb.Vertical(*side_parts)
     return rrb.Blueprint(rrb.Horizontal(image_view, side, column_shares=[3, 2]))
+
+
+def _series_views(series: Mapping[str | None, Sequence[str]]) -> list[Any]:
+    """One time-series plot per unit (known units first, in :data:`UNIT_TITLES` order)."""
+    import rerun.blueprint as rrb
+
+    views = []
+    known = [u for u in UNIT_TITLES if series.get(u)]
+    other = sorted(u for u in series if u is not None and u not in UNIT_TITLES and series[u])
+    for unit in known + other:
+        entities = list(series[unit])
+        views.append(rrb.TimeSeriesView(origin=SERIES, contents=[f"/{e.strip('/')}" for e in entities],
+                                        name=UNIT_TITLES.get(unit, unit)))
+    for entity in series.get(None, ()):  # series without a unit: a plot each
+        name = entity.strip("/").split("/", 1)[-1]
+        views.append(rrb.TimeSeriesView(origin=f"/{entity.strip('/')}", name=name))
+    return views
 
 
 def _points(value: Any, name: str, *, leading: int | None = None) -> np.ndarray:
@@ -302,9 +392,12 @@ class Recording:
         self.tmp_path = self.path.with_name(f".{self.path.name}.part")
         self.app_id = app_id
         self.recording_id = recording_id
-        self._blueprint = make_blueprint(blueprint)  # validates the name early
+        make_blueprint(blueprint)  # validates the name early
+        self._kind = blueprint
         self._stream: Any = None
         self._styled: set[str] = set()
+        self._series: dict[str | None, list[str]] = {}
+        self._roots: set[str] = set()
 
     # -- lifecycle ---------------------------------------------------------
 
@@ -325,7 +418,7 @@ class Recording:
             )
         stream.set_log_time_enabled(False)
         try:
-            stream.save(self.tmp_path, default_blueprint=self._blueprint)
+            stream.save(self.tmp_path)
         except RuntimeError as exc:  # e.g. the folder is not writable
             raise TrackcliError(f"cannot write recording {self.path}: {exc}") from exc
         self._stream = stream
@@ -336,6 +429,9 @@ class Recording:
         if stream is None:
             return
         try:
+            if exc_type is None and self._kind is not None:
+                stream.send_blueprint(make_blueprint(self._kind, self.content()), make_active=True,
+                                      make_default=True)
             stream.disconnect()
             if exc_type is None:
                 if not self.tmp_path.exists():
@@ -346,6 +442,26 @@ class Recording:
             raise
         if exc_type is not None:
             self.tmp_path.unlink(missing_ok=True)
+
+    def content(self) -> dict[str, Any]:
+        """What has been logged so far, for :func:`make_blueprint`.
+
+        ``series``: unit (or None) → series entities, in logging order; ``roots``: the
+        top-level entities that received data (``video``, ``histogram``, ``params``, ``log`` …).
+        """
+        return {"series": {u: list(e) for u, e in self._series.items()}, "roots": sorted(self._roots)}
+
+    def _note(self, entity: str) -> None:
+        self._roots.add(entity.strip("/").split("/", 1)[0])
+
+    def _note_series(self, entity: str, unit: str | None) -> None:
+        self._note(entity)
+        for u, entities in self._series.items():
+            if entity in entities:
+                if u != unit:
+                    raise DataError(f"{entity}: logged with unit {u!r} before, now {unit!r}")
+                return
+        self._series.setdefault(unit, []).append(entity)
 
     @property
     def stream(self) -> Any:
@@ -384,6 +500,7 @@ class Recording:
 
         asset = rr.AssetVideo(path=Path(video_path))
         timestamps = np.asarray(asset.read_frame_timestamps_nanos(), dtype=np.int64)
+        self._note(entity)
         self.stream.log(entity, asset, static=True)
         return timestamps
 
@@ -417,6 +534,7 @@ class Recording:
         ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, q])
         if not ok:
             raise DataError(f"JPEG encoding failed for a frame of shape {img.shape}")
+        self._note(entity)
         self.stream.log(entity, rr.EncodedImage(contents=buf.tobytes(), media_type="image/jpeg"))
 
     def frame_logger(self, video_path: str | os.PathLike[str] | None, *, quality: int = 85,
@@ -546,10 +664,12 @@ class Recording:
 
     def log_scalar(self, entity: str, value: float | Sequence[float], *,
                    names: str | Sequence[str] | None = None,
-                   colors: Any = None) -> None:
+                   colors: Any = None, unit: str | None = None) -> None:
         """Log one value (or k values, one line each) at the current frame.
 
         ``names``/``colors`` style the lines; they are logged once per entity (static).
+        ``unit`` (e.g. ``"px"``) groups the series into one plot with the others of that
+        unit; series without a unit get a plot each.
         """
         import rerun as rr
 
@@ -557,10 +677,12 @@ class Recording:
         if v.ndim != 1:
             raise DataError(f"a scalar sample must be one value or shape (k,), got shape {v.shape}")
         self._style(entity, names, colors, v.size)
+        self._note_series(entity, unit)
         self.stream.log(entity, rr.Scalars(v))
 
     def send_series(self, entity: str, frames: np.ndarray, times: np.ndarray, values: np.ndarray, *,
-                    names: str | Sequence[str] | None = None, colors: Any = None) -> None:
+                    names: str | Sequence[str] | None = None, colors: Any = None,
+                    unit: str | None = None) -> None:
         """Send a whole time series at once (``send_columns``; far faster than per frame).
 
         Parameters
@@ -573,6 +695,9 @@ class Recording:
             One line, or k lines plotted together (e.g. ``tx`` and ``ty``).
         names : str or sequence of k str, optional
             Legend names; with ``colors`` (k RGB(A) colours) logged once, static.
+        unit : str, optional
+            Groups the series into one plot with the others of that unit (see
+            :meth:`log_scalar`).
         """
         import rerun as rr
 
@@ -594,6 +719,7 @@ class Recording:
         self._style(entity, names, colors, k)
         if n == 0:
             return
+        self._note_series(entity, unit)
         column = rr.Scalars.columns(scalars=v.reshape(-1)).partition(np.full(n, k))
         self.stream.send_columns(
             entity,
@@ -649,6 +775,7 @@ class Recording:
             kwargs["widths"] = np.diff(e).astype(np.float32)
         if color is not None:
             kwargs["color"] = _color(color)
+        self._note(entity)
         self.stream.log(entity, rr.BarChart(c, **kwargs))
 
     def log_histogram_image(self, entity: str, matrix: np.ndarray, x_edges: np.ndarray, *,
@@ -674,6 +801,7 @@ class Recording:
         step = np.diff(e)
         if not np.allclose(step, step[0], rtol=1e-6, atol=0.0):
             raise DataError("x_edges must be equally spaced for the histogram image")
+        self._note(entity)
         self.stream.log(entity, rr.Image(img, color_model="RGB"), static=True)
         self.stream.log(entity, rr.Transform3D(translation=[float(e[0]), float(first_frame), 0.0],
                                                scale=[float(step[0]), 1.0, 1.0]), static=True)
@@ -694,6 +822,7 @@ class Recording:
         if not isinstance(params, Mapping):
             raise DataError(f"params must be a mapping, got {type(params).__name__}")
         text = yaml.safe_dump(_plain(params), sort_keys=False, default_flow_style=False)
+        self._note(entity)
         self.stream.log(entity, rr.TextDocument(f"```yaml\n{text}```", media_type="text/markdown"),
                         static=True)
         flat = _flatten(params)
@@ -707,6 +836,7 @@ class Recording:
         lv = str(level).upper()
         if lv not in TEXT_LEVELS:
             raise ConfigError(f"unknown text level {level!r}; valid: {', '.join(TEXT_LEVELS)}")
+        self._note(entity)
         self.stream.log(entity, rr.TextLog(str(text), level=lv))
 
 

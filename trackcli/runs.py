@@ -28,7 +28,7 @@ from .dynamics import AR2
 from .errors import ConfigError, TemplateError
 from .outputs import ensure_dir, write_text
 from .shape_space import ShapeSpace
-from .tracks import TrackWriter
+from .tracks import OutlineColumns, TrackWriter
 
 log = logging.getLogger(__name__)
 
@@ -104,6 +104,8 @@ def run_clip(
     jpeg_quality: int = 80,
     progress: Callable[[int], None] | None = None,
     recording_id: str | None = None,
+    outline_points: int = 64,
+    frames_mode: str = "auto",
 ) -> RunSummary:
     """Track ``video`` with ``make_tracker(frames)`` and write the outputs.
 
@@ -116,7 +118,15 @@ def run_clip(
         Gives the CSV column names.
     progress : callable, optional
         Called with 1 after every frame (for a progress bar).
+    outline_points : int
+        Points of the estimated outline written to every CSV row (0: no outline columns).
+    frames_mode : {"auto", "jpeg", "asset"}
+        How the recording stores frames (``output.frames``, see
+        :func:`trackcli.recording.frame_storage`).
     """
+    if outline_points == 1:
+        raise ConfigError("output.outline_points: expected 0 (no outline) or at least 2 points, got 1")
+    outline = OutlineColumns(space, int(outline_points)) if outline_points else None
     frames = _TimedFrames(video)
     results = make_tracker(frames)
     t_start = time.perf_counter()
@@ -135,12 +145,17 @@ def run_clip(
         rec_ctx = Recording(rrd_path, app_id="trackcli", recording_id=recording_id, blueprint="track")
         rec = rec_ctx.__enter__()
     try:
-        with TrackWriter(csv_path, space.names) as writer:
+        with TrackWriter(csv_path, space.names, outline) as writer:
             if rec is not None:
                 rec.log_params("params", params)
+                from .recording import frame_storage
+
                 path = getattr(video, "path", None)
-                use_asset = getattr(video, "is_rerun_video_asset", lambda: False)()
-                log_frame = rec.frame_logger(path if use_asset else None, quality=jpeg_quality)
+                storage, why = frame_storage(frames_mode, codec=getattr(video, "codec", ""),
+                                             embeddable=getattr(video, "is_rerun_video_asset", lambda: False)(),
+                                             whole_clip=getattr(video, "whole_clip", False))
+                log.info("recording frames as %s: %s", storage.upper() if storage == "jpeg" else "a video asset", why)
+                log_frame = rec.frame_logger(path if storage == "asset" else None, quality=jpeg_quality)
             record_seconds = 0.0
             for r in results:
                 writer.write(r)
@@ -202,14 +217,16 @@ def _record_series(rec: Any, s: dict[str, list], hist_rows: list, hist_edges: An
         return
     f = np.asarray(s["frame"], dtype=np.int64)
     t = np.asarray(s["time"], dtype=float)
-    rec.send_series("series/translation", f, t, np.column_stack([s["tx"], s["ty"]]), names=["tx", "ty"])
-    rec.send_series("series/centroid", f, t, np.column_stack([s["cx"], s["cy"]]), names=["cx", "cy"])
-    rec.send_series("series/normals_with_feature", f, t, np.asarray(s["found"], dtype=float))
-    rec.send_series("series/gate_rms", f, t, np.asarray(s["gate"], dtype=float))
+    rec.send_series("series/translation", f, t, np.column_stack([s["tx"], s["ty"]]), names=["tx", "ty"], unit="px")
+    rec.send_series("series/centroid", f, t, np.column_stack([s["cx"], s["cy"]]), names=["cx", "cy"], unit="px")
+    rec.send_series("series/gate_rms", f, t, np.asarray(s["gate"], dtype=float), names="gate_rms", unit="px")
+    rec.send_series("series/normals_with_feature", f, t, np.asarray(s["found"], dtype=float),
+                    names="normals with a feature", unit="count")
     ess = np.asarray(s["ess"], dtype=float)
     if np.isfinite(ess).any():
-        rec.send_series("series/ess", f, t, ess)
-        rec.send_series("series/loglik", f, t, np.asarray(s["loglik"], dtype=float))
+        rec.send_series("series/ess", f, t, ess, names="ESS", unit="samples")
+        rec.send_series("series/loglik", f, t, np.asarray(s["loglik"], dtype=float), names="loglik",
+                        unit="log-likelihood")
     if hist_rows and hist_edges is not None:
         rec.log_histogram_image("histogram/tx_over_time", np.vstack(hist_rows), hist_edges)
 
@@ -396,11 +413,32 @@ def track_clip(
                 return tracking.track_condensation(frames, space, dynamics, settings.measurement,
                                                    settings.condensation, rng, X0=X0)
         base = output_base(out, name, tracker)
+        _log_setup(name, tracker, setup, settings, video)
         write_text(Path(f"{base}.config.yaml"), dump_yaml(settings))
         params = {"clip": str(clip), "tracker": tracker, "source": setup.source, "settings": to_dict(settings)}
         bar_ctx = progress(f"{name} ({tracker})", len(video)) if progress else contextlib.nullcontext(_NullBar())
         with bar_ctx as bar:
-            return run_clip(video, make, space, tracker=tracker, csv_path=Path(f"{base}.csv"),
+            summary = run_clip(video, make, space, tracker=tracker, csv_path=Path(f"{base}.csv"),
                             rrd_path=Path(f"{base}.rrd") if (rrd and settings.output.rrd) else None,
                             params=params, jpeg_quality=settings.output.jpeg_quality,
-                            progress=bar.update, recording_id=f"{name}-{tracker}-{settings.seed}")
+                            progress=bar.update, recording_id=f"{name}-{tracker}-{settings.seed}",
+                            outline_points=settings.output.outline_points,
+                            frames_mode=settings.output.frames)
+        log.info("%s: %d frames decoded in %.2f s, tracked in %.2f s", name, summary.frames, summary.decode_seconds,
+                 summary.tracker_seconds)
+        return summary
+
+
+def _log_setup(name: str, tracker: str, setup: TrackingSetup, settings: Settings, video: Any) -> None:
+    """What ``-v`` tells about a clip before it runs: what is tracked, where it starts, the sampling."""
+    r = video.indices
+    log.info("%s: %s tracker on %s, frames %d-%d step %d (%d frames), %.3g frames/s", name, tracker, video.path,
+             r.start, r.stop - 1, r.step, len(r), video.fps)
+    log.info("%s: tracking %s; shape-space %s (%d components)", name, setup.source, setup.space.kind,
+             setup.space.Nx)
+    x0 = ", ".join(f"{n}={v:.3g}" for n, v in zip(setup.space.names, setup.X0))
+    log.info("%s: initial shape X0: %s", name, x0)
+    if tracker == "condensation":
+        c = settings.condensation
+        log.info("%s: seed %d; samples %d falling to %d over %d frames; likelihood %s, init %s", name,
+                 settings.seed, c.initial_particles, c.particles, c.schedule_frames, c.likelihood, c.init)

@@ -84,5 +84,6 @@ def record_paths(model: Model, paths: np.ndarray, rrd: Path, *, seed: int = 0) -
                 rec.log_contour(f"video/path{k}", contour, color=_COLOURS[k % len(_COLOURS)][::-1], width=1.5)
         frames = np.arange(n_frames)
         for k in range(n_paths):
-            rec.send_series(f"series/path{k}", frames, frames * tau, paths[k], names=list(space.names))
+            rec.send_series(f"series/path{k}", frames, frames * tau, paths[k], names=list(space.names),
+                            unit="shape vector")
     return rrd

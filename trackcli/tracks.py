@@ -31,6 +31,19 @@ Columns, in order:
     log of the contour discriminant of the estimated curve (> 0: more object-like than
     clutter).
 
+After these (and after any other per-frame column a tracker adds), when the run writes
+outlines (``output.outline_points`` = P > 0, the default 64):
+
+``outline_closed``
+    1 for a closed curve (the outline is a polygon), 0 for an open one (a polyline);
+``outline_x0, outline_y0, …, outline_x{P-1}, outline_y{P-1}``
+    P points of the estimated curve, px, equally spaced in the spline parameter (for a
+    closed curve ``s_i = i L / P``, for an open one from ``s = 0`` to ``s = L`` inclusive).
+
+With them any program can draw the estimate or score its outline without trackcli: a row's
+``outline_x*, outline_y*`` cells, in order, are the vertices.  Readers should find columns by
+name, not by position.
+
 Files are written atomically: a run that stops early leaves no half-written CSV.
 """
 
@@ -38,8 +51,9 @@ from __future__ import annotations
 
 import csv
 import math
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 
@@ -73,19 +87,69 @@ def row(result, ) -> list[str]:
     return cells
 
 
-class TrackWriter:
-    """Write rows as results arrive; the file appears under its final name only on ``close``."""
+OUTLINE_CLOSED = "outline_closed"
 
-    def __init__(self, path: str | Path, names: Sequence[str]):
+
+def outline_header(n_points: int) -> list[str]:
+    """Names of the outline columns for ``n_points`` points (empty for 0)."""
+    if n_points <= 0:
+        return []
+    return [OUTLINE_CLOSED, *[f"outline_{a}{i}" for i in range(n_points) for a in "xy"]]
+
+
+@dataclass(frozen=True)
+class OutlineColumns:
+    """Evaluates the ``n_points`` outline points of shape vectors of ``space`` for the CSV.
+
+    Attributes
+    ----------
+    space : ShapeSpace
+        The shape-space of the track (``Q = W X + Q0``).
+    n_points : int
+        P >= 2.
+    """
+
+    space: Any
+    n_points: int
+
+    def __post_init__(self) -> None:
+        if isinstance(self.n_points, bool) or not isinstance(self.n_points, int) or self.n_points < 2:
+            raise InputError(f"outline needs an integer number of points >= 2, got {self.n_points!r}")
+
+    def points(self, X: np.ndarray) -> np.ndarray:
+        """Outline points ``(P, 2)`` of the shape vector ``X`` ``(Nx,)``."""
+        from .spline import dense_polygon
+
+        return dense_polygon(self.space.to_control(np.asarray(X, dtype=float)), self.space.basis, self.n_points)
+
+    def header(self) -> list[str]:
+        return outline_header(self.n_points)
+
+    def cells(self, X: np.ndarray) -> list[str]:
+        pts = self.points(X)
+        return ["1" if self.space.basis.closed else "0", *[_fmt(float(v), 3) for v in pts.reshape(-1)]]
+
+
+class TrackWriter:
+    """Write rows as results arrive; the file appears under its final name only on ``close``.
+
+    With ``outline`` (an :class:`OutlineColumns`), every row ends with the outline columns.
+    """
+
+    def __init__(self, path: str | Path, names: Sequence[str], outline: OutlineColumns | None = None):
         self.path = Path(path)
+        self._outline = outline
         self._ctx = atomic_path(self.path)
         tmp = self._ctx.__enter__()
         self._fh = open(tmp, "w", newline="", encoding="utf-8")
         self._csv = csv.writer(self._fh)
-        self._csv.writerow(header(names))
+        self._csv.writerow(header(names) + (outline.header() if outline else []))
 
     def write(self, result) -> None:
-        self._csv.writerow(row(result))
+        cells = row(result)
+        if self._outline is not None:
+            cells += self._outline.cells(result.X)
+        self._csv.writerow(cells)
 
     def __enter__(self) -> "TrackWriter":
         return self
@@ -130,6 +194,57 @@ def read_track(path: str | Path, names: Sequence[str] | None = None) -> tuple[np
     if not frames:
         raise InputError(f"{p}: the track has no rows")
     return np.asarray(frames), np.asarray(X, dtype=float), found
+
+
+def read_outlines(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Read the outline columns of a track CSV (see the module docstring), by name.
+
+    Returns
+    -------
+    frames : ndarray of shape (T,), int
+    outlines : ndarray of shape (T, P, 2)
+        Outline points; NaN in rows whose outline cells are empty.
+    closed : ndarray of shape (T,), bool
+
+    Raises
+    ------
+    InputError
+        The file is missing or unreadable, has no outline columns (written with
+        ``output.outline_points: 0`` or by an older trackcli), or a cell is not a number.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{p}: no such track file")
+    try:
+        with open(p, newline="", encoding="utf-8") as fh:
+            rows = list(csv.reader(fh))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{p}: cannot read ({exc})") from None
+    head = rows[0] if rows else []
+    if "frame" not in head:
+        raise InputError(f"{p}: not a trackcli track CSV (no 'frame' column in the header)")
+    col = {name: i for i, name in enumerate(head)}
+    n = 0
+    while f"outline_x{n}" in col and f"outline_y{n}" in col:
+        n += 1
+    if n < 2:
+        raise InputError(f"{p}: no outline columns (outline_x0, outline_y0, ...); re-run `trackcli track` "
+                         "with output.outline_points > 0")
+    idx = [col[f"outline_{a}{i}"] for i in range(n) for a in "xy"]
+    ci = col.get(OUTLINE_CLOSED)
+    frames, outlines, closed = [], [], []
+    for k, r in enumerate(rows[1:], 2):
+        if not r:
+            continue
+        try:
+            frames.append(int(r[col["frame"]]))
+            outlines.append([float(r[i]) if r[i].strip() else math.nan for i in idx])
+            closed.append(ci is None or r[ci].strip() != "0")
+        except (ValueError, IndexError):
+            raise InputError(f"{p} line {k}: malformed outline cells") from None
+    if not frames:
+        raise InputError(f"{p}: the track has no rows")
+    return np.asarray(frames), np.asarray(outlines, dtype=float).reshape(len(frames), n, 2), np.asarray(closed)
 
 
 def write_rows(path: str | Path, names: Sequence[str], results: Iterable) -> Path:

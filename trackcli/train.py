@@ -212,6 +212,8 @@ def train(
                                    rrd_path=Path(f"{base}.rrd") if write_rrd else None,
                                    params={"cycle": cycle, "clip": str(video.path), "settings": to_dict(settings)},
                                    jpeg_quality=settings.output.jpeg_quality, progress=bar.update,
+                                   outline_points=settings.output.outline_points,
+                                   frames_mode=settings.output.frames,
                                    recording_id=f"{stem}-cycle{cycle}")
             rec.runs.append(summary)
             _, X, _ = read_track(summary.csv, space.names)

@@ -69,8 +69,8 @@ END_SLACK: int = 2
 _PROBE_GRABS = 3
 
 # Codecs (as OpenCV reports FOURCC, compared in lower case) that Rerun's AssetVideo plays
-# from an MP4 container: H.264 and VP9.
-_RERUN_CODECS = frozenset({"avc1", "h264", "x264", "vp09", "vp90"})
+# from an MP4 container: H.264, VP9 and AV1.
+_RERUN_CODECS = frozenset({"avc1", "h264", "x264", "vp09", "vp90", "av01"})
 
 
 @dataclass(frozen=True, eq=False)
@@ -219,11 +219,21 @@ class Video:
         self._reader_next = index + 1
         return self._frame(index, _as_bgr(image, f"{self.path} frame {index}"))
 
+    @property
+    def codec(self) -> str:
+        """The video codec of a file as a lower-case FOURCC (``"vp09"``, ``"avc1"``, ``"av01"``); empty for folders."""
+        return self._fourcc.strip().lower()
+
+    @property
+    def whole_clip(self) -> bool:
+        """Whether the selection is every frame of the clip (no start, end or step)."""
+        return self.indices == range(0, self.n_total, 1)
+
     def is_rerun_video_asset(self) -> bool:
         """Whether Rerun can play the file itself as a video asset.
 
         True for an MP4 file (``.mp4`` suffix and an ISO-BMFF ``ftyp`` box) whose video codec is
-        H.264 (``avc1``) or VP9 (``vp09``); Rerun's ``AssetVideo`` rejects other codecs (e.g.
+        H.264 (``avc1``), VP9 (``vp09``) or AV1 (``av01``); Rerun's ``AssetVideo`` rejects other codecs (e.g.
         ``mp4v``) and other containers (AVI, MKV).  Always False for image folders.
         """
         if self.kind != "file" or self.path.suffix.lower() != ".mp4":

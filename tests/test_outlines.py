@@ -1,0 +1,257 @@
+"""Outlines in the track CSV, outline IoU in eval, coverage warnings and the precision/success plot."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from conftest import CLIP_FRAMES, SAMPLE_DATA, sample_clip
+from trackcli.cli import cli
+from trackcli.errors import InputError
+from trackcli.evaluate import GroundTruth, Track, coverage_notes, load_track, load_truth, polygon_iou, score_frames
+from trackcli.sample_data import load_outline, load_truth as load_sample_truth, polygon_centroid, true_outline
+from trackcli.tracks import outline_header, read_outlines
+
+
+def run(args, code: int):
+    result = CliRunner().invoke(cli, [str(a) for a in args])
+    assert result.exit_code == code, f"exit {result.exit_code}, expected {code}; output:\n{result.output}"
+    assert "Traceback" not in result.output
+    return result
+
+
+@pytest.fixture
+def tracked(tmp_path, ellipse_clip):
+    tmpl = tmp_path / "ellipse.yaml"
+    run(["draw", ellipse_clip, "--ellipse", "70,60,28,36", "-o", tmpl], 0)
+    out = tmp_path / "out"
+    run(["track", ellipse_clip, "--template", tmpl, "--tracker", "kalman", "--no-rrd", "-o", out], 0)
+    return out / "ellipse.kalman.csv"
+
+
+# ---------------------------------------------------------------------------------------------
+# The CSV columns
+
+
+def test_outline_columns_follow_the_other_columns_and_agree_with_them(tracked):
+    with open(tracked, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+        fh.seek(0)
+        head = next(csv.reader(fh))
+    assert head[-len(outline_header(64)):] == outline_header(64)
+    assert head.index("lost") < head.index("outline_closed")
+    frames, outlines, closed = read_outlines(tracked)
+    assert outlines.shape == (CLIP_FRAMES, 64, 2)
+    assert closed.all()
+    assert frames.tolist() == [int(r["frame"]) for r in rows]
+    for r, poly in zip(rows, outlines):
+        # the outline is the contour whose centroid and box the other columns report
+        np.testing.assert_allclose(polygon_centroid(poly), [float(r["cx"]), float(r["cy"])], atol=0.3)
+        lo, hi = poly.min(axis=0), poly.max(axis=0)
+        assert lo[0] >= float(r["bbox_x"]) - 0.01 and lo[1] >= float(r["bbox_y"]) - 0.01
+        assert hi[0] <= float(r["bbox_x"]) + float(r["bbox_w"]) + 0.01
+        assert hi[1] <= float(r["bbox_y"]) + float(r["bbox_h"]) + 0.01
+        # 64 points of a dense contour span nearly all of its box
+        assert hi[0] - lo[0] > float(r["bbox_w"]) - 1.0
+
+
+def test_outline_points_setting(tmp_path, ellipse_clip):
+    tmpl = tmp_path / "e.yaml"
+    run(["draw", ellipse_clip, "--ellipse", "70,60,28,36", "-o", tmpl], 0)
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("output: {outline_points: 0}\n")
+    run(["track", ellipse_clip, "--template", tmpl, "--tracker", "kalman", "--no-rrd", "-c", cfg, "-o", tmp_path], 0)
+    head = (tmp_path / "ellipse.kalman.csv").read_text().splitlines()[0].split(",")
+    assert not [c for c in head if c.startswith("outline")]
+    with pytest.raises(InputError, match="no outline columns"):
+        read_outlines(tmp_path / "ellipse.kalman.csv")
+    cfg.write_text("output: {outline_points: 12}\n")
+    run(["track", ellipse_clip, "--template", tmpl, "--tracker", "kalman", "--no-rrd", "-c", cfg, "-o", tmp_path], 0)
+    assert read_outlines(tmp_path / "ellipse.kalman.csv")[1].shape == (CLIP_FRAMES, 12, 2)
+    cfg.write_text("output: {outline_points: 1}\n")
+    result = run(["track", ellipse_clip, "--template", tmpl, "--no-rrd", "-c", cfg, "-o", tmp_path], 3)
+    assert "output.outline_points" in result.stderr
+
+
+# ---------------------------------------------------------------------------------------------
+# Polygon IoU
+
+
+def _circle(r, n=400):
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    return r * np.column_stack([np.cos(t), np.sin(t)])
+
+
+@pytest.mark.parametrize("r, d", [(10.0, 3.0), (50.0, 15.0), (40.0, 0.0), (30.0, 70.0)])
+def test_polygon_iou_of_two_discs_matches_the_lens_formula(r, d):
+    if d >= 2 * r:
+        exact = 0.0
+    else:
+        inter = 2 * r * r * np.arccos(d / (2 * r)) - 0.5 * d * np.sqrt(4 * r * r - d * d)
+        exact = inter / (2 * np.pi * r * r - inter)
+    got = polygon_iou(_circle(r) + 100, _circle(r) + [100 + d, 100])
+    assert got == pytest.approx(exact, abs=0.01)
+
+
+def test_polygon_iou_known_squares_and_degenerate_inputs():
+    sq = np.array([[0, 0], [40, 0], [40, 40], [0, 40]], float)
+    assert polygon_iou(sq, sq) == 1.0
+    assert polygon_iou(sq, sq + [20, 0]) == pytest.approx(1 / 3, abs=0.01)
+    assert polygon_iou(sq, sq[::-1]) == 1.0  # orientation does not matter
+    assert polygon_iou(sq, np.full((4, 2), np.nan)) == 0.0
+    assert polygon_iou(sq, sq[:2]) == 0.0
+
+
+# ---------------------------------------------------------------------------------------------
+# eval with outlines
+
+
+def _truth_track_csv(path, shift=(0.0, 0.0), n_points=64, frames=None):
+    """A track CSV whose rows are the sample truth of test.mp4 (outline resampled), shifted."""
+    truth = load_sample_truth(SAMPLE_DATA / "test.truth.csv")
+    base = load_outline(SAMPLE_DATA / "test.outline.json")
+    step = base.points.shape[0] // n_points
+    names = ["frame", "cx", "cy", "bbox_x", "bbox_y", "bbox_w", "bbox_h", "lost", *outline_header(n_points)]
+    dx, dy = shift
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(names)
+        for k in range(len(truth)) if frames is None else frames:
+            row = truth.row(k)
+            poly = true_outline(row, base)[::step] + [dx, dy]
+            w.writerow([row["frame"], row["cx"] + dx, row["cy"] + dy, row["bbox_x"] + dx, row["bbox_y"] + dy,
+                        row["bbox_w"], row["bbox_h"], 0, 1, *poly.reshape(-1).round(3)])
+    return path
+
+
+def test_eval_reads_outlines_on_both_sides_and_scores_them(tmp_path):
+    sample_clip("test")
+    truth = load_truth(SAMPLE_DATA / "test.truth.csv")
+    assert truth.outline is not None and truth.outline.shape[1:] == (256, 2)
+    exact = load_track(_truth_track_csv(tmp_path / "exact.csv"))
+    assert exact.outline.shape == (160, 64, 2)
+    s = score_frames(exact, truth)
+    # a 64-point copy of the 256-point outline: cut corners cost well under 1 %
+    assert s.outline_iou.min() > 0.99
+    shifted = score_frames(load_track(_truth_track_csv(tmp_path / "shift.csv", shift=(6.0, 0.0))), truth)
+    assert 0.80 < shifted.outline_iou.mean() < 0.97
+    # the outline sees a shift the box IoU sees too, but sees it differently: not the same numbers
+    assert not np.allclose(shifted.outline_iou, shifted.iou, atol=0.01)
+
+
+def test_eval_without_outlines_reports_none(tmp_path):
+    sample_clip("test")
+    csv_path = tmp_path / "box.csv"
+    lines = ["frame,cx,cy,bbox_x,bbox_y,bbox_w,bbox_h", "0,227.5,194,177,116.7,109.6,127.3"]
+    csv_path.write_text("\n".join(lines) + "\n")
+    result = run(["eval", csv_path, SAMPLE_DATA / "test.truth.csv", "--json"], 0)
+    assert json.loads(result.stdout)["outline_iou"] is None
+    # a truth copied away from its outline file has no outlines
+    lone = tmp_path / "test.truth.csv"
+    lone.write_text((SAMPLE_DATA / "test.truth.csv").read_text())
+    assert load_truth(lone).outline is None
+
+
+def test_eval_cli_prints_outline_iou(tmp_path):
+    sample_clip("test")
+    result = run(["eval", _truth_track_csv(tmp_path / "t.csv"), SAMPLE_DATA / "test.truth.csv"], 0)
+    line = [ln for ln in result.stdout.splitlines() if ln.startswith("outline IoU")]
+    assert len(line) == 1 and float(line[0].split()[-1]) > 0.99
+    assert result.stderr == ""  # same frames on both sides: no warning
+
+
+# ---------------------------------------------------------------------------------------------
+# Prediction and truth of different length
+
+
+def _boxes(n, first=0):
+    b = np.tile([10.0, 10.0, 20.0, 20.0], (n, 1))
+    return np.arange(first, first + n), b
+
+
+def test_coverage_notes_name_what_was_scored():
+    f, b = _boxes(100)
+    truth = GroundTruth(f, b[:, :2] + 10, b, np.ones(100, bool), source="truth.txt")
+    tf, tb = _boxes(30)
+    short = Track(tf, tb[:, :2] + 10, tb, np.zeros(30, bool), source="short.csv")
+    notes = coverage_notes(short, truth, score_frames(short, truth))
+    assert "70 truth frames outside the track's frames 0-29 are not scored" in notes[0]
+    assert notes[-1] == "scored 30 frames: frames 0-29"
+    lf, lb = _boxes(120)
+    long = Track(lf, lb[:, :2] + 10, lb, np.zeros(120, bool), source="long.csv")
+    notes = coverage_notes(long, truth, score_frames(long, truth))
+    assert "20 predicted frames (100-119) have no ground truth" in notes[0]
+    assert notes[-1] == "scored 100 frames: frames 0-99"
+    same = Track(f, b[:, :2] + 10, b, np.zeros(100, bool))
+    assert coverage_notes(same, truth) == []
+
+
+def test_eval_cli_warns_on_different_lengths(tmp_path):
+    sample_clip("test")
+    short = _truth_track_csv(tmp_path / "short.csv", frames=range(40))
+    result = run(["eval", short, SAMPLE_DATA / "test.truth.csv"], 0)
+    warning = result.stderr.strip()
+    assert warning.startswith("Warning: ") and len(result.stderr.splitlines()) == 1
+    assert "120 truth frames outside the track's frames 0-39 are not scored" in warning
+    assert "scored 40 frames: frames 0-39" in warning
+    data = json.loads(run(["eval", short, SAMPLE_DATA / "test.truth.csv", "--json"], 0).stdout)
+    assert data["kind"] == "eval" and data["frames_scored"] == 40
+    assert any("not scored" in w for w in data["warnings"])
+    assert run(["-q", "eval", short, SAMPLE_DATA / "test.truth.csv"], 0).stderr == ""
+
+
+# ---------------------------------------------------------------------------------------------
+# Several tracks and the plot
+
+
+def test_eval_several_tracks_and_plot(tmp_path):
+    sample_clip("test")
+    good = _truth_track_csv(tmp_path / "test.good.csv")
+    bad = _truth_track_csv(tmp_path / "test.bad.csv", shift=(30.0, 0.0))
+    png = tmp_path / "plots" / "pr.png"
+    result = run(["eval", good, bad, SAMPLE_DATA / "test.truth.csv", "--plot", png], 0)
+    assert "== good" in result.stdout and "== bad" in result.stdout
+    img = cv2.imread(str(png))
+    assert img is not None and img.shape[1] == 1000
+    assert not list(png.parent.glob(".*part*"))
+    lines = run(["eval", good, bad, SAMPLE_DATA / "test.truth.csv", "--json"], 0).stdout.splitlines()
+    scores = [json.loads(ln) for ln in lines]
+    assert [s["track"] for s in scores] == [str(good), str(bad)]
+    assert scores[0]["precision"] == 1.0 and scores[1]["precision"] == 0.0
+
+
+def test_plot_curves_are_drawn_where_the_scores_say():
+    from trackcli.plots import curves, draw_plots
+
+    f, b = _boxes(50)
+    truth = GroundTruth(f, b[:, :2] + 10, b, np.ones(50, bool))
+    perfect = curves("perfect", score_frames(Track(f, b[:, :2] + 10, b, np.zeros(50, bool)), truth))
+    assert perfect.precision.min() == 1.0 and perfect.auc == pytest.approx(20 / 21)
+    img = draw_plots([perfect])
+    # the precision curve of a perfect track runs along the top of the left panel: blue pixels there
+    blue = (img[..., 0] > 150) & (img[..., 2] < 80)
+    rows = np.flatnonzero(blue[:, 100:480].any(axis=1))
+    assert rows.size and rows.min() < 60
+
+
+def test_track_json_has_kind_and_rounded_floats(tmp_path, ellipse_clip, caplog):
+    import logging
+
+    caplog.set_level(logging.INFO, logger="trackcli")
+    tmpl = tmp_path / "e.yaml"
+    run(["draw", ellipse_clip, "--ellipse", "70,60,28,36", "-o", tmpl], 0)
+    result = run(["-v", "track", ellipse_clip, "--template", tmpl, "--particles", "40", "--seed", "3", "--no-rrd",
+                  "--json", "-o", tmp_path], 0)
+    data = json.loads(result.stdout)
+    assert data["kind"] == "track" and data["frames"] == CLIP_FRAMES
+    floats = [v for v in data.values() if isinstance(v, float)]
+    assert floats and all(len(repr(v).lstrip("-").replace(".", "").lstrip("0").split("e")[0]) <= 6 for v in floats)
+    # -v says where the settings, the start and the sampling came from
+    for text in ("settings: the defaults, options condensation.particles=40, seed=3", "initial shape X0",
+                 "seed 3; samples", "frames decoded"):
+        assert text in caplog.text, text

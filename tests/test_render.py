@@ -1,0 +1,141 @@
+"""trackcli render: the outline from the track CSV drawn on video files and image folders."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from conftest import CLIP_FRAMES, CLIP_SIZE
+from trackcli.cli import cli
+from trackcli.render import ESTIMATE_BGR, default_output, render, sheet_indices
+from trackcli.tracks import read_outlines
+
+
+def run(args, code: int):
+    result = CliRunner().invoke(cli, [str(a) for a in args])
+    assert result.exit_code == code, f"exit {result.exit_code}, expected {code}; output:\n{result.output}"
+    assert "Traceback" not in result.output
+    return result
+
+
+@pytest.fixture
+def tracked(tmp_path, ellipse_clip):
+    tmpl = tmp_path / "ellipse.yaml"
+    run(["draw", ellipse_clip, "--ellipse", "70,60,28,36", "-o", tmpl], 0)
+    run(["track", ellipse_clip, "--template", tmpl, "--tracker", "kalman", "--no-rrd", "-o", tmp_path / "out"], 0)
+    return tmp_path / "out" / "ellipse.kalman.csv"
+
+
+def clip_frames(path):
+    cap = cv2.VideoCapture(str(path))
+    frames = []
+    while True:
+        ok, img = cap.read()
+        if not ok:
+            break
+        frames.append(img)
+    cap.release()
+    return frames
+
+
+def outline_pixels_are_drawn(img, original, outline):
+    """Most outline points are painted the estimate colour; far from it the frame is untouched."""
+    h, w = img.shape[:2]
+    pts = np.rint(outline).astype(int)
+    inside = (pts[:, 0] >= 0) & (pts[:, 0] < w) & (pts[:, 1] >= 0) & (pts[:, 1] < h)
+    pts = pts[inside]
+    colours = img[pts[:, 1], pts[:, 0]].astype(int)
+    near = np.abs(colours - np.array(ESTIMATE_BGR)).max(axis=1) < 60
+    mask = np.zeros((h, w), np.uint8)
+    cv2.polylines(mask, [np.rint(outline).astype(np.int32)], True, 1, 12)
+    cv2.circle(mask, tuple(np.rint(outline.mean(axis=0)).astype(int)), 8, 1, -1)
+    far = mask == 0
+    far[:30, :] = False  # the label
+    return near.mean() > 0.8 and np.array_equal(img[far], original[far])
+
+
+def test_png_frames_show_the_csv_outline(tmp_path, tracked, ellipse_clip):
+    out = tmp_path / "frames"
+    result = run(["render", tracked, ellipse_clip, "--png", "-o", out], 0)
+    assert f"{CLIP_FRAMES} frames, {CLIP_FRAMES} with an estimate" in result.stdout
+    files = sorted(out.glob("*.png"))
+    assert [f.name for f in files] == [f"frame_{k:06d}.png" for k in range(CLIP_FRAMES)]
+    _, outlines, _ = read_outlines(tracked)
+    for k, (f, original) in enumerate(zip(files, clip_frames(ellipse_clip))):
+        assert outline_pixels_are_drawn(cv2.imread(str(f)), original, outlines[k]), f.name
+    # re-rendering into the same folder replaces it; a folder with other files is refused
+    run(["render", tracked, ellipse_clip, "--png", "-o", out, "--end", "2"], 0)
+    assert len(list(out.glob("*.png"))) == 2
+    (out / "notes.txt").write_text("mine")
+    err = run(["render", tracked, ellipse_clip, "--png", "-o", out], 4)
+    assert err.stderr.startswith("Error: ") and "other files" in err.stderr
+
+
+def test_image_folder_and_video_file_give_the_same_pictures(tmp_path, tracked, ellipse_clip):
+    folder = tmp_path / "clipdir"
+    folder.mkdir()
+    for k, img in enumerate(clip_frames(ellipse_clip)):
+        cv2.imwrite(str(folder / f"{k + 1}.png"), img)
+    run(["render", tracked, folder, "--png", "-o", tmp_path / "a", "--fps", "25"], 0)
+    run(["render", tracked, ellipse_clip, "--png", "-o", tmp_path / "b"], 0)
+    for k in range(CLIP_FRAMES):
+        a = cv2.imread(str(tmp_path / "a" / f"frame_{k:06d}.png"))
+        b = cv2.imread(str(tmp_path / "b" / f"frame_{k:06d}.png"))
+        assert np.array_equal(a, b)
+
+
+def test_video_has_one_frame_per_selected_frame_and_default_name(tmp_path, tracked, ellipse_clip):
+    result = run(["render", tracked, ellipse_clip, "--start", "1", "--end", "5", "--step", "2"], 0)
+    out = default_output(tracked, "video")
+    assert out == tracked.with_name("ellipse.kalman.mp4") and out.is_file()
+    assert str(out) in result.stdout
+    frames = clip_frames(out)
+    assert len(frames) == 2 and frames[0].shape == (CLIP_SIZE[1], CLIP_SIZE[0], 3)
+    assert not list(out.parent.glob(".*part*"))
+
+
+def test_contact_sheet(tmp_path, tracked, ellipse_clip):
+    out = tmp_path / "sheet.png"
+    run(["render", tracked, ellipse_clip, "--sheet", "4", "--tile-width", "80", "-o", out], 0)
+    sheet = cv2.imread(str(out))
+    # 4 tiles of 80x60, with 4 px gaps: 3 columns x 2 rows (the grid is a little wider than tall)
+    assert sheet.shape == (2 * 60 + 3 * 4, 3 * 80 + 4 * 4, 3)
+    assert sheet_indices(range(0, 6), 4) == [0, 2, 3, 5]
+    assert sheet_indices(range(10, 41, 3), 3) == [10, 25, 40]
+    assert sheet_indices(range(3), 10) == [0, 1, 2]
+
+
+def test_interrupted_render_leaves_nothing(tmp_path, tracked, ellipse_clip):
+    before = sorted(p.name for p in tmp_path.iterdir())
+    for kind, out in (("video", tmp_path / "v.mp4"), ("frames", tmp_path / "f"), ("sheet", tmp_path / "s.png")):
+        calls = []
+
+        def progress(n):
+            calls.append(n)
+            if len(calls) == 3:
+                raise KeyboardInterrupt
+
+        with pytest.raises(KeyboardInterrupt):
+            render(tracked, ellipse_clip, out, kind=kind, progress=progress)
+        assert len(calls) == 3
+        assert sorted(p.name for p in tmp_path.iterdir()) == before, kind
+
+
+def test_render_errors_are_one_line(tmp_path, tracked, ellipse_clip):
+    bare = tmp_path / "bare.csv"
+    bare.write_text("frame,cx,cy\n0,1,2\n")
+    err = run(["render", bare, ellipse_clip], 4)
+    assert err.stderr.startswith("Error: ") and "no outline columns" in err.stderr
+    assert len(err.stderr.splitlines()) == 1
+    run(["render", tracked, ellipse_clip, "--sheet", "3", "--png"], 2)
+    err = run(["render", tracked, tmp_path / "missing.mp4"], 4)
+    assert "missing.mp4" in err.stderr
+    one = run(["render", tracked, ellipse_clip, "--start", "5", "--end", "6", "-o", tmp_path / "one.mp4"], 0)
+    assert "of 1 frames, 1 with an estimate" in one.stdout
+    late = tracked.with_name("late.csv")
+    lines = tracked.read_text().splitlines()
+    late.write_text("\n".join(lines[:3]) + "\n")  # frames 0 and 1 only
+    err = run(["render", late, ellipse_clip, "--start", "3"], 5)
+    assert "no estimate in the selected frames 3-5" in err.stderr
