@@ -12,7 +12,7 @@ from statsmodels.tsa.statespace.mlemodel import MLEModel
 
 from trackcli import kalman
 from trackcli.dynamics import AR2
-from trackcli.smoothing import filter_information, rts_smooth
+from trackcli.smoothing import filter_information, rts_smooth, smooth_filtered
 
 
 def _oscillator(nx: int = 2) -> AR2:
@@ -110,7 +110,7 @@ def test_information_filter_matches_statsmodels_likelihood_and_smoother():
     zs, Ss = zip(*(_information(C, R, y[k]) for k in range(T)))
     filtered, loglik = filter_information(model, kalman.KalmanState(prior_mean, prior_cov),
                                           np.array(zs), np.array(Ss))
-    smoothed = rts_smooth(model, filtered)
+    smoothed = smooth_filtered(model, filtered)
 
     # statsmodels: the state at time t is (X_t; X_{t+1}) for t = 0 .. T-2; the first one
     # carries the observations of frames 0 and 1, each later one that of its lower block.
@@ -132,8 +132,9 @@ def test_information_filter_matches_statsmodels_likelihood_and_smoother():
     ref = sm.ssm.smooth()
 
     for k in range(T - 1):
-        np.testing.assert_allclose(smoothed.states[k].mean, ref.smoothed_state[:, k], rtol=0, atol=1e-8)
-        np.testing.assert_allclose(smoothed.states[k].cov, ref.smoothed_state_cov[:, :, k], rtol=0, atol=1e-8)
+        np.testing.assert_allclose(filtered.means[k], ref.filtered_state[:, k], rtol=0, atol=1e-8)
+        np.testing.assert_allclose(smoothed.means[k], ref.smoothed_state[:, k], rtol=0, atol=1e-8)
+        np.testing.assert_allclose(smoothed.covs[k], ref.smoothed_state_cov[:, :, k], rtol=0, atol=1e-8)
     for k in range(T - 2):
         np.testing.assert_allclose(smoothed.cross[k], ref.smoothed_state_autocov[:, :, k], rtol=0, atol=1e-8)
     # Whitening y -> R^(-1/2) y changes the density by the Jacobian, 0.5 log det R per seen frame.

@@ -21,7 +21,10 @@ and ``Z``, relative to the prediction.  Written absolutely, ``z = Z + S X̃`` is
 as ``S X + v`` with ``v ~ N(0, S)``.  With ``S = L Lᵀ`` (``L`` of shape ``(Nx, r)``,
 ``r = rank S``) this is the same information as the whitened measurement
 ``y = Lᵀ X + e``, ``e ~ N(0, I_r)``, whose log-density :func:`filter_information` sums
-into the log-likelihood of a sequence.  The log-likelihood is therefore that of the
+into the log-likelihood of a sequence.  That forward pass is the predict / assimilate step
+of AC Fig 10.3 (the same gain form and Joseph update as :mod:`trackcli.kalman`) written on
+plain arrays with the whitening of each frame computed once, because EM runs it over every
+training frame at every iteration.  The log-likelihood is therefore that of the
 whitened measurements: it differs from the density of any other parametrisation of the
 same data by a constant that does not depend on the dynamics, which is all that
 comparing or maximising over dynamics needs.
@@ -34,13 +37,12 @@ from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
-import scipy.linalg
 
 from . import kalman
 from .errors import DataError
 from .kalman import KalmanState
 
-__all__ = ["Smoothed", "filter_information", "rts_smooth"]
+__all__ = ["Smoothed", "filter_information", "rts_smooth", "smooth_filtered", "whiten"]
 
 # Eigenvalues of S below this fraction of the largest are treated as no information.
 _RANK_RTOL = 1e-10
@@ -52,24 +54,37 @@ class Smoothed:
 
     Attributes
     ----------
-    states : list of KalmanState, length T
-        ``(𝒳ˢ_k, Pˢ_k)``: the belief over ``(X_{k-1}; X_k)`` given every frame.
+    means : ndarray of shape (T, 2 Nx)
+        ``𝒳ˢ_k``: the mean of ``(X_{k-1}; X_k)`` given every frame.
+    covs : ndarray of shape (T, 2 Nx, 2 Nx)
+        ``Pˢ_k``, its covariance.
     cross : ndarray of shape (T - 1, 2 Nx, 2 Nx)
         ``cross[k] = Cov(𝒳_{k+1}, 𝒳_k | all frames)``, the lag-one cross-covariances.
     """
 
-    states: list[KalmanState]
+    means: np.ndarray
+    covs: np.ndarray
     cross: np.ndarray
+
+    @property
+    def states(self) -> list[KalmanState]:
+        """The smoothed beliefs as :class:`~trackcli.kalman.KalmanState` values."""
+        return [KalmanState(m, c) for m, c in zip(self.means, self.covs)]
+
+    @property
+    def nx(self) -> int:
+        return int(self.means.shape[1] // 2)
 
     @property
     def X(self) -> np.ndarray:
         """Smoothed shapes ``X̂ˢ_k``, shape (T, Nx)."""
-        return np.array([s.X for s in self.states])
+        return self.means[:, self.nx:]
 
     @property
     def X_std(self) -> np.ndarray:
         """Their standard deviations ``sqrt(diag Pˢ)``, shape (T, Nx)."""
-        return np.array([s.X_std for s in self.states])
+        nx = self.nx
+        return np.sqrt(np.clip(np.diagonal(self.covs[:, nx:, nx:], axis1=1, axis2=2), 0.0, None))
 
 
 def _solve_psd(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -80,13 +95,33 @@ def _solve_psd(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     direction as filtered, which is its smoothed value.
     """
     try:
-        factor = scipy.linalg.cho_factor(matrix, check_finite=False)
-        out = scipy.linalg.cho_solve(factor, rhs, check_finite=False)
+        lower = np.linalg.cholesky(matrix)
+        out = np.linalg.solve(lower.T, np.linalg.solve(lower, rhs))
         if np.all(np.isfinite(out)):
             return out
     except np.linalg.LinAlgError:
         pass
     return np.linalg.pinv(matrix, hermitian=True) @ rhs
+
+
+def _backward(A: np.ndarray, Q: np.ndarray, offset: np.ndarray, means: np.ndarray,
+              covs: np.ndarray) -> Smoothed:
+    T, n = means.shape
+    s_means = np.empty_like(means)
+    s_covs = np.empty_like(covs)
+    cross = np.zeros((max(T - 1, 0), n, n))
+    s_means[-1], s_covs[-1] = means[-1], covs[-1]
+    for k in range(T - 2, -1, -1):
+        m, P = means[k], covs[k]
+        m_pred = A @ m + offset
+        P_pred = A @ P @ A.T + Q
+        P_pred = 0.5 * (P_pred + P_pred.T)
+        J = _solve_psd(P_pred, A @ P).T  # P Aᵀ P̃⁻¹ (P and P̃ symmetric)
+        s_means[k] = m + J @ (s_means[k + 1] - m_pred)
+        cov = P + J @ (s_covs[k + 1] - P_pred) @ J.T
+        s_covs[k] = 0.5 * (cov + cov.T)
+        cross[k] = s_covs[k + 1] @ J.T
+    return Smoothed(s_means, s_covs, cross)
 
 
 def rts_smooth(dynamics: Any, filtered: Sequence[KalmanState]) -> Smoothed:
@@ -113,84 +148,44 @@ def rts_smooth(dynamics: Any, filtered: Sequence[KalmanState]) -> Smoothed:
     if A.shape[0] != filtered[0].mean.size:
         raise DataError(f"the dynamics have Nx = {A.shape[0] // 2} but the filtered states have "
                         f"Nx = {filtered[0].nx}")
-    Q = B @ B.T
-    T = len(filtered)
-    n = A.shape[0]
-    means = [np.empty(0)] * T
-    covs = [np.empty(0)] * T
-    cross = np.zeros((max(T - 1, 0), n, n))
-    means[-1] = filtered[-1].mean
-    covs[-1] = filtered[-1].cov
-    for k in range(T - 2, -1, -1):
-        m, P = filtered[k].mean, filtered[k].cov
-        m_pred = A @ m + offset
-        P_pred = A @ P @ A.T + Q
-        P_pred = 0.5 * (P_pred + P_pred.T)
-        J = _solve_psd(P_pred, A @ P).T  # P Aᵀ P̃⁻¹ (P and P̃ symmetric)
-        means[k] = m + J @ (means[k + 1] - m_pred)
-        cov = P + J @ (covs[k + 1] - P_pred) @ J.T
-        covs[k] = 0.5 * (cov + cov.T)
-        cross[k] = covs[k + 1] @ J.T
-    return Smoothed([KalmanState(m, c) for m, c in zip(means, covs)], cross)
+    return _backward(A, B @ B.T, offset, np.array([f.mean for f in filtered]),
+                     np.array([f.cov for f in filtered]))
 
 
-def _whiten(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Eigenvectors ``V`` (n, r) and ``sqrt`` eigenvalues ``d`` (r,) of ``S`` on its range: ``L = V diag(d)``."""
+def whiten(z: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``L`` (Nx, r) with ``S = L Lᵀ`` on its range, and ``y`` (r,) with ``z = L y``.
+
+    ``z = S X + v = L (Lᵀ X + e)``, so ``y = Lᵀ X + e`` with ``e ~ N(0, I_r)``; ``r = rank S``
+    (eigenvalues below ``1e-10`` of the largest count as zero).
+    """
     values, vectors = np.linalg.eigh(S)
     top = float(values[-1]) if values.size else 0.0
     keep = values > _RANK_RTOL * top if top > 0 else np.zeros(values.size, dtype=bool)
-    return vectors[:, keep], np.sqrt(values[keep])
-
-
-def _whitened(z: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``L`` (m, r) with ``S = L Lᵀ`` on its range, and ``y`` (r,) with ``z = L y``.
-
-    ``z = S X + v = L (Lᵀ X + e)``, so ``y = Lᵀ X + e`` with ``e ~ N(0, I_r)``.
-    """
-    V, d = _whiten(S)
+    d = np.sqrt(values[keep])
+    V = vectors[:, keep]
     return V * d, (V.T @ z) / d
 
 
-def _loglik(innovation: np.ndarray, G: np.ndarray) -> tuple[float, Any]:
-    """``log N(innovation; 0, G)`` and the Cholesky factor of ``G``."""
-    factor = scipy.linalg.cho_factor(0.5 * (G + G.T))
-    logdet = 2.0 * float(np.sum(np.log(np.diag(factor[0]))))
-    quad = float(innovation @ scipy.linalg.cho_solve(factor, innovation))
-    return -0.5 * (innovation.size * math.log(2.0 * math.pi) + logdet + quad), factor
+def _update(mean: np.ndarray, cov: np.ndarray, H: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Assimilate ``y = H 𝒳 + N(0, I)``; return the posterior and ``log p(y)``.
 
-
-def _measurement_loglik(predicted: KalmanState, z: np.ndarray, S: np.ndarray) -> float:
-    """Log-density of the whitened measurement of ``X_k`` given the prediction."""
-    L, y = _whitened(z, S)
-    if y.size == 0:
-        return 0.0
-    G = L.T @ predicted.P @ L + np.eye(y.size)
-    return _loglik(y - L.T @ predicted.X, G)[0]
-
-
-def _initial_step(prior: KalmanState, z: np.ndarray, S: np.ndarray) -> tuple[KalmanState, float]:
-    """Assimilate frames 0 and 1 (``z``, ``S`` of shapes (2, Nx), (2, Nx, Nx)) into the prior.
-
-    The gain-form update of :func:`trackcli.kalman.assimilate` with Joseph covariance, for a
-    measurement of both blocks of the state.
+    The gain form with Joseph covariance of :func:`trackcli.kalman.assimilate`, for a
+    whitened measurement of any block of the state.
     """
-    nx = prior.nx
-    blocks = [_whitened(z[i], S[i]) for i in range(2)]
-    r = [y.size for _, y in blocks]
-    if sum(r) == 0:
-        return prior, 0.0
-    H = np.zeros((sum(r), 2 * nx))
-    H[: r[0], :nx] = blocks[0][0].T
-    H[r[0]:, nx:] = blocks[1][0].T
-    y = np.concatenate([blocks[0][1], blocks[1][1]])
-    mean, cov = prior.mean, prior.cov
+    r = y.size
+    if r == 0:
+        return mean, cov, 0.0
     innovation = y - H @ mean
     PHt = cov @ H.T
-    loglik, factor = _loglik(innovation, H @ PHt + np.eye(y.size))
-    gain = scipy.linalg.cho_solve(factor, PHt.T).T
-    reduce = np.eye(2 * nx) - gain @ H
+    G = H @ PHt + np.eye(r)
+    lower = np.linalg.cholesky(0.5 * (G + G.T))
+    white = np.linalg.solve(lower, innovation)
+    gain = np.linalg.solve(lower.T, np.linalg.solve(lower, PHt.T)).T
+    reduce = np.eye(mean.size) - gain @ H
     new_cov = reduce @ cov @ reduce.T + gain @ gain.T
-    return KalmanState(mean + gain @ innovation, 0.5 * (new_cov + new_cov.T)), loglik
+    loglik = -0.5 * (r * math.log(2.0 * math.pi) + 2.0 * float(np.sum(np.log(np.diag(lower))))
+                     + float(white @ white))
+    return mean + gain @ innovation, 0.5 * (new_cov + new_cov.T), loglik
 
 
 def filter_information(
@@ -198,7 +193,9 @@ def filter_information(
     prior: KalmanState,
     z: np.ndarray,
     S: np.ndarray,
-) -> tuple[list[KalmanState], float]:
+    *,
+    whitened: Sequence[tuple[np.ndarray, np.ndarray]] | None = None,
+) -> tuple[Smoothed, float]:
     """Forward pass over absolute information pairs, with the log-likelihood of the sequence.
 
     Parameters
@@ -213,13 +210,16 @@ def filter_information(
         Absolute information vectors ``z_k = Z_k + S_k X̃_k``, T >= 2.
     S : ndarray of shape (T, Nx, Nx)
         Information matrices (symmetric positive semi-definite, any rank; 0 = no measurement).
+    whitened : sequence of (L, y), optional
+        :func:`whiten` of every frame, when the caller keeps them across passes.
 
     Returns
     -------
-    filtered : list of KalmanState, length T - 1
-        Posterior over ``(X_{k-1}; X_k)`` for ``k = 1 .. T-1``: the first combines the prior
-        with frames 0 and 1, each later one is :func:`trackcli.kalman.predict` then
-        :func:`trackcli.kalman.assimilate` with ``Z = z_k - S_k X̃_k``.
+    filtered : Smoothed
+        The filtered beliefs over ``(X_{k-1}; X_k)`` for ``k = 1 .. T-1`` (the first combines
+        the prior with frames 0 and 1, each later one is the predict / assimilate step of AC
+        Fig 10.3) in the arrays of a :class:`Smoothed` (``cross`` empty); pass it to
+        :func:`smooth_filtered`.
     loglik : float
         ``log p(y_0 .. y_{T-1})`` of the whitened measurements (module docstring).
     """
@@ -230,11 +230,33 @@ def filter_information(
         raise DataError(f"information vectors must have shape (T >= 2, {nx}), got {z.shape}")
     if S.shape != (z.shape[0], nx, nx):
         raise DataError(f"information matrices must have shape ({z.shape[0]}, {nx}, {nx}), got {S.shape}")
-    state, total = _initial_step(prior, z[:2], S[:2])
-    filtered = [state]
-    for k in range(2, z.shape[0]):
-        predicted = kalman.predict(state, dynamics)
-        total += _measurement_loglik(predicted, z[k], S[k])
-        state = kalman.assimilate(predicted, z[k] - S[k] @ predicted.X, S[k])
-        filtered.append(state)
-    return filtered, total
+    T = z.shape[0]
+    if whitened is None:
+        whitened = [whiten(z[k], S[k]) for k in range(T)]
+    A, B, offset = kalman.state_space(dynamics)
+    Q = B @ B.T
+    # frames 0 and 1 together, into the prior over (X_0; X_1)
+    (L0, y0), (L1, y1) = whitened[0], whitened[1]
+    H = np.zeros((y0.size + y1.size, 2 * nx))
+    H[: y0.size, :nx] = L0.T
+    H[y0.size:, nx:] = L1.T
+    mean, cov, total = _update(prior.mean, prior.cov, H, np.concatenate([y0, y1]))
+    means = np.empty((T - 1, 2 * nx))
+    covs = np.empty((T - 1, 2 * nx, 2 * nx))
+    means[0], covs[0] = mean, cov
+    for k in range(2, T):
+        mean = A @ mean + offset
+        cov = A @ cov @ A.T + Q
+        L, y = whitened[k]
+        H = np.zeros((y.size, 2 * nx))
+        H[:, nx:] = L.T
+        mean, cov, ll = _update(mean, 0.5 * (cov + cov.T), H, y)
+        total += ll
+        means[k - 1], covs[k - 1] = mean, cov
+    return Smoothed(means, covs, np.zeros((0, 2 * nx, 2 * nx))), total
+
+
+def smooth_filtered(dynamics: Any, filtered: Smoothed) -> Smoothed:
+    """:func:`rts_smooth` over the array form returned by :func:`filter_information`."""
+    A, B, offset = kalman.state_space(dynamics)
+    return _backward(A, B @ B.T, offset, filtered.means, filtered.covs)
