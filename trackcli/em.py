@@ -310,3 +310,56 @@ def fit_ar2_em(
     em = EMReport(iterations=iterations, log_likelihood=path, converged=converged, tolerance=tolerance,
                   frames=frames, stabilised_log_likelihood=stabilised_ll)
     return model, report, em
+
+
+def learn_em(sequences: Sequence[InformationSequence], tau: float, settings: Any) -> tuple[AR2, dict[str, Any]]:
+    """:func:`fit_ar2_em` with the ``em`` and ``learning`` settings; a report for the model file.
+
+    The report is that of :func:`trackcli.learning.fit_ar2` (``log_likelihood`` being the
+    log-likelihood of the measurements) with ``method: em`` and the ``em`` record of
+    :class:`EMReport` (iterations, convergence, the log-likelihood path).
+    """
+    model, report, em = fit_ar2_em(sequences, tau, tolerance=settings.em.tolerance,
+                                   max_iterations=settings.em.max_iterations,
+                                   enforce_stability=settings.learning.enforce_stability,
+                                   max_spectral_radius=settings.learning.max_spectral_radius)
+    path = em.log_likelihood
+    log.info("EM: %d iteration(s)%s; log-likelihood of the measurements %.2f -> %.2f (gain %.3g per frame)",
+             em.iterations, "" if em.converged else f" (stopped at em.max_iterations = {settings.em.max_iterations})",
+             path[0], path[-1], (path[-1] - path[0]) / max(em.frames, 1))
+    for k, value in enumerate(path):
+        log.debug("EM iteration %d: log-likelihood %.6f", k, value)
+    if em.stabilised_log_likelihood is not None:
+        log.info("EM: the converged model was unstable; stabilised, log-likelihood %.2f",
+                 em.stabilised_log_likelihood)
+    return model, {**report.to_dict(), "method": "em", "em": em.to_dict()}
+
+
+def information_from_track(path: Any, names: Sequence[str]) -> InformationSequence:
+    """The measurements of a track CSV: each shape with its reported standard deviations.
+
+    Frames marked lost carry no measurement.
+    """
+    from .tracks import read_track, read_track_uncertainty
+
+    _, X, _ = read_track(path, names)
+    std, lost = read_track_uncertainty(path, names)
+    try:
+        return InformationSequence.from_shapes(X, std, lost)
+    except DataError as exc:
+        raise DataError(f"{path}: {exc}") from None
+
+
+def change_space(z: np.ndarray, S: np.ndarray, old: Any, new: Any, X: np.ndarray) -> InformationSequence:
+    """Measurements ``(z, S)`` about shapes in space ``old``, as information about shapes in ``new``.
+
+    With ``X_old = T X_new + c`` (the L2 projection into ``old`` of ``new``'s curves, exact
+    when ``new`` lies within ``old``, as a PCA space learned from ``old``'s tracked outlines
+    does), a measurement ``z ~ N(S X_old, S)`` is the information ``(Tᵀ (z - S c), Tᵀ S T)``
+    about ``X_new``.  ``X`` (T, Nx_new) are the rough shapes in the new space.
+    """
+    c = old.project(new.to_control(np.zeros(new.Nx)))
+    T = np.column_stack([old.project(new.to_control(e)) - c for e in np.eye(new.Nx)])
+    z_new = (np.asarray(z) - np.einsum("tij,j->ti", S, c)) @ T
+    S_new = np.einsum("ai,tab,bj->tij", T, S, T)
+    return InformationSequence(z_new, 0.5 * (S_new + S_new.transpose(0, 2, 1)), X)

@@ -198,6 +198,10 @@ def track_kalman(
                 "gate_inner": pts - gates[:, None] * nrm,
                 "gate_outer": pts + gates[:, None] * nrm,
                 "features": pts[feats.found] + feats.nu[feats.found, None] * nrm[feats.found],
+                # for offline consumers (trackcli.em, trackcli.smoothing): the filtered belief, and
+                # the frame's measurement as absolute information z = Z + S X̃ with S
+                "state": state,
+                "information": (Z + S @ Xp, S),
             },
         )
 
