@@ -170,3 +170,69 @@ def test_single_frame_is_its_own_smoothing():
     smoothed = rts_smooth(model, [state])
     np.testing.assert_array_equal(smoothed.states[0].mean, state.mean)
     assert smoothed.cross.shape == (0, 4, 4)
+
+
+def test_particle_smoother_approaches_the_rts_smoother_on_a_linear_gaussian_model():
+    """CONDENSATION with a Gaussian likelihood, then the backward pass, against Kalman + RTS."""
+    from trackcli import condensation as cond
+    from trackcli.smoothing import particle_smoothing_weights
+
+    model = _oscillator(2)
+    T, N = 50, 1500
+    X, C, R, y = _observations(model, T, seed=7, rows=2)
+    y[5] = y[9] = y[12] = y[20]        # no missing rows here: every frame measured
+    Ri = np.linalg.inv(R)
+    init = kalman.init_unknown(model)
+
+    filtered, predicted = [], init
+    for k in range(T):
+        if k:
+            predicted = kalman.predict(filtered[-1], model)
+        z, S = _information(C, R, y[k])
+        filtered.append(kalman.assimilate(predicted, z - S @ predicted.X, S))
+    rts = rts_smooth(model, filtered).X
+    kf = np.array([f.X for f in filtered])
+
+    rng = np.random.default_rng(8)
+    draws = rng.multivariate_normal(init.mean, init.cov, size=N)
+    particles = cond.ParticleSet(draws[:, :2], draws[:, 2:], np.zeros(N))
+
+    def loglik_at(k):
+        def loglik(Xs):
+            r = y[k] - Xs @ C.T
+            return -0.5 * np.einsum("ni,ij,nj->n", r, Ri, r)
+        return loglik
+
+    prev, cur, logw = [], [], []
+    for k in range(T):
+        if k == 0:
+            particles = cond.ParticleSet(particles.prev, particles.cur, loglik_at(0)(particles.cur))
+        else:
+            particles, _ = cond.step(particles, model, loglik_at(k), rng)
+        prev.append(particles.prev)
+        cur.append(particles.cur)
+        logw.append(particles.log_w)
+    weights = particle_smoothing_weights(prev, cur, logw, model)
+    pf = np.array([np.exp(lw - lw.max()) / np.exp(lw - lw.max()).sum() @ c for lw, c in zip(logw, cur)])
+    ps = np.array([w @ c for w, c in zip(weights, cur)])
+
+    assert all(abs(w.sum() - 1) < 1e-9 and np.all(w >= 0) for w in weights)
+    # the particle filter tracks the Kalman filter ...
+    assert np.sqrt(np.mean((pf - kf) ** 2)) < 0.3 * np.sqrt(np.mean((kf - rts) ** 2))
+    # ... and the particle smoother the RTS smoother, closer than the filters are to it
+    # (the rest is Monte-Carlo error, which falls as N grows)
+    assert np.sqrt(np.mean((ps - rts) ** 2)) < 0.5 * np.sqrt(np.mean((kf - rts) ** 2))
+    # against the truth: as good as RTS, and better than filtering
+    err_ps, err_pf, err_rts = (np.sqrt(np.mean((e - X) ** 2)) for e in (ps, pf, rts))
+    assert err_ps < 1.1 * err_rts
+    assert err_ps < 0.8 * err_pf
+
+
+def test_particle_smoothing_needs_consecutive_sample_sets():
+    from trackcli.smoothing import particle_smoothing_weights
+
+    model = _oscillator(2)
+    cur = [np.zeros((3, 2)), np.ones((3, 2))]
+    prev = [np.zeros((3, 2)), np.full((3, 2), 5.0)]   # matches no sample of frame 0
+    with pytest.raises(Exception, match="matches no sample"):
+        particle_smoothing_weights(prev, cur, [np.zeros(3), np.zeros(3)], model)

@@ -262,11 +262,16 @@ def _video_overrides(fps, start, end, step) -> dict:
 @click.option("--seed", type=click.IntRange(min=0), help="Random seed (same seed, same numbers).")
 @click.option("-o", "--outdir", type=click.Path(file_okay=False), default="trackcli-out", show_default=True,
               help="Folder for the outputs.")
+@click.option("--smooth", is_flag=True,
+              help="Also write smoothed estimates, CLIP.TRACKER.smoothed.csv, and draw them in the recording: "
+                   "Kalman: Rauch-Tung-Striebel; CONDENSATION: forward-filtering backward-smoothing of the "
+                   "sample weights; both over the whole clip, after tracking it.")
 @click.option("--no-rrd", is_flag=True, help="Do not write Rerun recordings.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON summary line per clip on stdout.")
 @with_video_options
 @click.pass_context
-def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, outdir, no_rrd, as_json, fps, start, end, step):
+def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, outdir, smooth, no_rrd, as_json, fps,
+              start, end, step):
     """Follow the object through each CLIP (video file or image folder).
 
     \b
@@ -281,6 +286,7 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
       CLIP.TRACKER.csv         per-frame estimates (see README: track format)
       CLIP.TRACKER.rrd         Rerun recording: frames, contour, particles or gates, series
       CLIP.TRACKER.config.yaml the effective configuration
+      CLIP.TRACKER.smoothed.csv with --smooth: smoothed estimates (same columns)
     and one summary line on stdout.  With several CLIPS, a clip that fails is reported
     on stderr and the others still run; the exit code is then 1.
     """
@@ -306,7 +312,7 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
     for clip, stem in zip(clips, stems):
         try:
             summary = track_clip(clip, settings=settings, outdir=out, model=model, template=template,
-                                 tracker=tracker, name=stem, rrd=not no_rrd,
+                                 tracker=tracker, name=stem, rrd=not no_rrd, smooth=smooth,
                                  progress=lambda label, n: _progress(ctx, n, label))
         except TrackcliError as exc:
             if len(clips) == 1:

@@ -311,6 +311,7 @@ def track_condensation(
             display["particle_weights"] = w[top] / max(float(w.max()), 1e-300)
         display["particle_centroids"] = particles.cur[:, :2] + space.origin
         display["weights"] = w
+        display["particles"] = particles  # for offline consumers (trackcli.smoothing)
         yield FrameResult(
             index=int(frame.index), time=float(frame.time), X=X, X_std=X_std, contour=contour,
             centroid=centroid, bbox=bbox, n_found=n_found, n_normals=M, gate_rms=float(settings.search),
