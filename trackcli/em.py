@@ -300,7 +300,6 @@ def fit_ar2_em(
             break
         model, report = fit_ar2(stats, tau)
         iterations += 1
-    assert report is not None and stats is not None  # at least one M-step ran (max_iterations >= 1)
     stabilised_ll = None
     final_ll = path[-1]
     if enforce_stability and model.spectral_radius() > max_spectral_radius:
