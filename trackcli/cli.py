@@ -302,11 +302,16 @@ def _video_overrides(fps, start, end, step) -> dict:
 @click.option("--seed", type=click.IntRange(min=0), help="Random seed (same seed, same numbers).")
 @click.option("-o", "--outdir", type=click.Path(file_okay=False), default="trackcli-out", show_default=True,
               help="Folder for the outputs.")
+@click.option("--smooth", is_flag=True,
+              help="Also write smoothed estimates, CLIP.TRACKER.smoothed.csv, and draw them in the recording: "
+                   "Kalman: Rauch-Tung-Striebel; CONDENSATION: forward-filtering backward-smoothing of the "
+                   "sample weights; both over the whole clip, after tracking it.")
 @click.option("--no-rrd", is_flag=True, help="Do not write Rerun recordings.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON summary line per clip on stdout.")
 @with_video_options
 @click.pass_context
-def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, outdir, no_rrd, as_json, fps, start, end, step):
+def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, outdir, smooth, no_rrd, as_json, fps,
+              start, end, step):
     """Follow the object through each CLIP (video file or image folder).
 
     \b
@@ -325,6 +330,7 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
       CLIP.TRACKER.csv         per-frame estimates (see README: track format)
       CLIP.TRACKER.rrd         Rerun recording: frames, contour, particles or gates, series
       CLIP.TRACKER.config.yaml the effective configuration
+      CLIP.TRACKER.smoothed.csv with --smooth: smoothed estimates (same columns)
     and one summary line on stdout.  With several CLIPS, a clip that fails is reported
     on stderr and the others still run; the exit code is then 1.
     """
@@ -355,7 +361,7 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
     for clip, stem in zip(clips, stems):
         try:
             summary = track_clip(clip, settings=settings, outdir=out, model=model, template=template,
-                                 tracker=tracker, name=stem, rrd=not no_rrd,
+                                 tracker=tracker, name=stem, rrd=not no_rrd, smooth=smooth,
                                  progress=lambda label, n: _progress(ctx, n, label), explicit=explicit)
         except TrackcliError as exc:
             if len(clips) == 1:
@@ -392,18 +398,25 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
               help="Frame rate of the clips behind --from-tracks (default: the template clip's, else 25).")
 @click.option("--outdir", type=click.Path(file_okay=False),
               help="Folder for the per-cycle tracks and recordings (default: beside the model, MODEL_training/).")
+@click.option("--method", type=click.Choice(["mle", "em"]), default="mle", show_default=True,
+              help="mle: maximum likelihood on the tracked shapes (AC Fig 11.6); em: expectation-maximisation "
+                   "on the measurements behind them (each frame's aggregated normals, or with --from-tracks "
+                   "each shape with its reported std), settings em.tolerance and em.max_iterations.")
 @click.option("--no-rrd", is_flag=True, help="Do not write recordings of the training tracks.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
 @with_video_options
 @click.pass_context
-def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tracks, tracks_fps, outdir, no_rrd,
-              as_json, fps, start, end, step):
+def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tracks, tracks_fps, outdir, method,
+              no_rrd, as_json, fps, start, end, step):
     """Learn AR(2) dynamics from training CLIPS (AC Fig 11.1).
 
     Tracks each clip with the Kalman contour tracker (hand-set dynamics from the config in
     the first cycle), learns dynamics by maximum likelihood from all clips together
     (statistics pooled, AC Fig 11.6), and repeats with the learned model for --cycles
     cycles.  Writes the model, and per clip and cycle a track CSV and a recording.
+    --method em learns instead by EM from what the tracker measured, smoothing each
+    sequence under the current model (iterations and log-likelihoods in the model's
+    provenance).
 
     \b
     Example:
@@ -425,7 +438,7 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
         if clips:
             raise click.UsageError("give training CLIPS or --from-tracks, not both")
         rate = tracks_fps or settings.video.fps or 25.0
-        model = learn_from_tracks(from_tracks, tmpl, settings, 1.0 / rate, shape_space)
+        model = learn_from_tracks(from_tracks, tmpl, settings, 1.0 / rate, shape_space, method)
         save_model(out_model, model)
         _learn_report(model, [], out_model, as_json)
         return
@@ -444,7 +457,7 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
             return _progress(ctx, n, label)
 
         model, records = train(videos, tmpl, settings, cycles=settings.learning.cycles, shape_space=shape_space,
-                               outdir=work, write_rrd=not no_rrd, progress=bar)
+                               outdir=work, write_rrd=not no_rrd, progress=bar, method=method)
     finally:
         for v in videos:
             v.close()
@@ -465,9 +478,21 @@ def _learn_report(model, records, path, as_json: bool) -> None:
         per = ", ".join(f"{Path_name(x['clip'])} {x['seconds']:.1f} s ({x['frames']} frames, {x['lost']} lost)"
                         for x in c["clips"])
         click.echo(f"cycle {c['cycle']}: {c['seconds']:.1f} s: {per}")
+    for r in records:
+        if "em" in r.report:
+            click.echo(f"cycle {r.cycle}: {_em_line(r.report['em'])}")
+    if not records and "em" in rep:
+        click.echo(_em_line(rep["em"]))
     rho = rep.get("spectral_radius")
     click.echo(f"wrote {path}: {model.space.kind} shape-space ({model.space.Nx} components), "
                f"spectral radius {rho if rho is None else round(rho, 4)}; see `trackcli inspect {path}`")
+
+
+def _em_line(em: dict) -> str:
+    path = em["log_likelihood"]
+    state = "converged" if em["converged"] else "not converged (em.max_iterations)"
+    return (f"EM {em['iterations']} iteration(s), {state}; log-likelihood of the measurements "
+            f"{path[0]:.1f} -> {path[-1]:.1f}")
 
 
 def Path_name(p: str) -> str:

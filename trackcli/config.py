@@ -196,6 +196,12 @@ class LearningSettings:
 
 
 @dataclass(frozen=True)
+class EMSettings:
+    tolerance: float = _f(1e-4, "float", "learn --method em: stop when an iteration raises the log-likelihood by less than this, nats per frame", lo=0, lo_open=True)
+    max_iterations: int = _f(200, "int", "learn --method em: most EM iterations per learning cycle", lo=1, hi=100000)
+
+
+@dataclass(frozen=True)
 class OutputSettings:
     rrd: bool = _f(True, "bool", "write a Rerun recording (.rrd)")
     jpeg_quality: int = _f(80, "int", "JPEG quality of frames stored in recordings", lo=10, hi=100)
@@ -221,6 +227,7 @@ class Settings:
     placement: PlacementSettings = _section(PlacementSettings, "a learned model tracking a clip (track --model)")
     learning: LearningSettings = _section(LearningSettings, "learning dynamics")
     output: OutputSettings = _section(OutputSettings, "outputs")
+    em: EMSettings = _section(EMSettings, "learning dynamics by EM (learn --method em)")
 
 
 # ---------------------------------------------------------------------------------------------

@@ -40,6 +40,7 @@ ESTIMATE_RGB = (255, 60, 40)
 BEST_RGB = (60, 255, 120)
 GATE_RGB = (255, 210, 0)
 FEATURE_RGB = (0, 200, 255)
+SMOOTHED_RGB = (255, 0, 255)
 
 
 @dataclass(frozen=True)
@@ -55,6 +56,7 @@ class RunSummary:
     wall_seconds: float
     csv: str
     rrd: str | None
+    smoothed_csv: str | None = None
 
     @property
     def tracker_fps(self) -> float:
@@ -69,7 +71,8 @@ class RunSummary:
         ess = f", mean ESS {self.mean_ess:.0f}" if np.isfinite(self.mean_ess) else ""
         return (f"{self.clip}: {self.tracker}, {self.frames} frames, {self.frames_lost} lost, "
                 f"features on {100 * self.mean_found_fraction:.0f}% of normals{ess}, "
-                f"{self.tracker_fps:.0f} frames/s (tracker alone) -> {self.csv}")
+                f"{self.tracker_fps:.0f} frames/s (tracker alone) -> {self.csv}"
+                + (f", smoothed -> {self.smoothed_csv}" if self.smoothed_csv else ""))
 
 
 class _TimedFrames:
@@ -106,6 +109,8 @@ def run_clip(
     recording_id: str | None = None,
     outline_points: int = 64,
     frames_mode: str = "auto",
+    smoother: Any = None,
+    smooth_csv_path: Path | None = None,
 ) -> RunSummary:
     """Track ``video`` with ``make_tracker(frames)`` and write the outputs.
 
@@ -123,6 +128,10 @@ def run_clip(
     frames_mode : {"auto", "jpeg", "asset"}
         How the recording stores frames (``output.frames``, see
         :func:`trackcli.recording.frame_storage`).
+    smoother : optional
+        A consumer of the results (:mod:`trackcli.smoothing`: ``push(result)`` and
+        ``finish()`` return smoothed results); they go to ``smooth_csv_path`` in the track
+        format and, as a second contour (``video/smoothed``), to the recording.
     """
     if outline_points == 1:
         raise ConfigError("output.outline_points: expected 0 (no outline) or at least 2 points, got 1")
@@ -144,8 +153,19 @@ def run_clip(
 
         rec_ctx = Recording(rrd_path, app_id="trackcli", recording_id=recording_id, blueprint="track")
         rec = rec_ctx.__enter__()
+    smooth_ctx = TrackWriter(smooth_csv_path, space.names, outline) if smoother is not None else contextlib.nullcontext()
+    smoothed_centroids: list[tuple[int, float, float, float]] = []
+
+    def write_smoothed(done: list[Any]) -> None:
+        for s in done:
+            smooth_writer.write(s)
+            smoothed_centroids.append((s.index, s.time, float(s.centroid[0]), float(s.centroid[1])))
+            if rec is not None:
+                rec.set_frame(s.index, s.time)
+                rec.log_contour("video/smoothed", s.contour, color=SMOOTHED_RGB, width=2.0)
+
     try:
-        with TrackWriter(csv_path, space.names, outline) as writer:
+        with TrackWriter(csv_path, space.names, outline) as writer, smooth_ctx as smooth_writer:
             if rec is not None:
                 rec.log_params("params", params)
                 from .recording import frame_storage
@@ -175,11 +195,19 @@ def run_clip(
                     t0 = time.perf_counter()
                     _record_frame(rec, log_frame, frames.current, r)
                     record_seconds += time.perf_counter() - t0
+                if smoother is not None:
+                    write_smoothed(smoother.push(r))
                 if progress is not None:
                     progress(1)
+            if smoother is not None:
+                write_smoothed(smoother.finish())
             wall = time.perf_counter() - t_start
             if rec is not None:
                 _record_series(rec, series, hist_rows, hist_edges)
+                if smoothed_centroids:
+                    c = np.asarray(smoothed_centroids)
+                    rec.send_series("series/centroid_smoothed", c[:, 0].astype(np.int64), c[:, 1], c[:, 2:],
+                                    names=["cx", "cy"])
     except BaseException as exc:
         if rec_ctx is not None:
             rec_ctx.__exit__(type(exc), exc, exc.__traceback__)
@@ -193,6 +221,7 @@ def run_clip(
         mean_ess=float(np.mean(ess_vals)) if ess_vals else float("nan"),
         tracker_seconds=tracker_seconds, decode_seconds=frames.decode_seconds, wall_seconds=wall,
         csv=str(csv_path), rrd=str(rrd_path) if rrd_path else None,
+        smoothed_csv=str(smooth_csv_path) if smoother is not None else None,
     )
 
 
@@ -340,6 +369,7 @@ def track_clip(
     rrd: bool = True,
     progress: Callable[[str, int], ContextManager[Any]] | None = None,
     explicit: Collection[str] | None = None,
+    smooth: bool = False,
 ) -> RunSummary:
     """Track one clip and write its outputs: what ``trackcli track`` does per clip.
 
@@ -347,7 +377,10 @@ def track_clip(
 
     - ``NAME.TRACKER.config.yaml``: the effective settings (written first);
     - ``NAME.TRACKER.csv``: per-frame estimates (see :mod:`trackcli.tracks`);
-    - ``NAME.TRACKER.rrd``: the Rerun recording, if ``rrd`` and ``settings.output.rrd``.
+    - ``NAME.TRACKER.rrd``: the Rerun recording, if ``rrd`` and ``settings.output.rrd``;
+    - ``NAME.TRACKER.smoothed.csv``: with ``smooth``, the smoothed estimates (Kalman:
+      Rauch–Tung–Striebel; CONDENSATION: forward-filtering backward-smoothing; both over
+      the whole clip, see :mod:`trackcli.smoothing`).
 
     Parameters
     ----------
@@ -373,6 +406,8 @@ def track_clip(
         (:data:`trackcli.model.MODEL_SECTIONS`) is then taken from the model's stored
         settings (:func:`trackcli.model.settings_with_model`).  None: ``settings`` are used
         as given.
+    smooth : bool
+        Also smooth the track offline (see above).
 
     Returns
     -------
@@ -412,6 +447,12 @@ def track_clip(
             def make(frames: Iterable[Any]) -> Iterator[Any]:
                 return tracking.track_condensation(frames, space, dynamics, settings.measurement,
                                                    settings.condensation, rng, X0=X0)
+        smoother: Any = None
+        if smooth:
+            from .smoothing import KalmanTrackSmoother, ParticleSmoother
+
+            smoother = (KalmanTrackSmoother(space, dynamics) if tracker == "kalman"
+                        else ParticleSmoother(space, dynamics))
         base = output_base(out, name, tracker)
         _log_setup(name, tracker, setup, settings, video)
         write_text(Path(f"{base}.config.yaml"), dump_yaml(settings))
@@ -423,7 +464,8 @@ def track_clip(
                             params=params, jpeg_quality=settings.output.jpeg_quality,
                             progress=bar.update, recording_id=f"{name}-{tracker}-{settings.seed}",
                             outline_points=settings.output.outline_points,
-                            frames_mode=settings.output.frames)
+                            frames_mode=settings.output.frames, smoother=smoother,
+                            smooth_csv_path=Path(f"{base}.smoothed.csv") if smooth else None)
         log.info("%s: %d frames decoded in %.2f s, tracked in %.2f s", name, summary.frames, summary.decode_seconds,
                  summary.tracker_seconds)
         return summary

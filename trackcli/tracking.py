@@ -291,6 +291,10 @@ def track_kalman(
                 "gate_inner": pts - gates[:, None] * nrm,
                 "gate_outer": pts + gates[:, None] * nrm,
                 "features": pts[feats.found] + feats.nu[feats.found, None] * nrm[feats.found],
+                # for offline consumers (trackcli.em, trackcli.smoothing): the filtered belief, and
+                # the frame's measurement as absolute information z = Z + S X̃ with S
+                "state": state,
+                "information": (Z + S @ Xp, S),
             },
         )
 
@@ -423,6 +427,7 @@ def track_condensation(
             display["particle_weights"] = w[top] / max(float(w.max()), 1e-300)
         display["particle_centroids"] = particles.cur[:, :2] + space.origin
         display["weights"] = w
+        display["particles"] = particles  # for offline consumers (trackcli.smoothing)
         yield FrameResult(
             index=int(frame.index), time=float(frame.time), X=X, X_std=X_std, contour=contour,
             centroid=centroid, bbox=bbox, n_found=n_found, n_normals=M, gate_rms=float(settings.search),

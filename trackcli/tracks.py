@@ -253,3 +253,29 @@ def write_rows(path: str | Path, names: Sequence[str], results: Iterable) -> Pat
         for r in results:
             w.write(r)
     return Path(path)
+
+
+def read_track_uncertainty(path: str | Path, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Read ``(std (T, Nx), lost (T,) bool)`` from a track CSV with shape components ``names``.
+
+    Empty or missing ``std_`` cells read as NaN; a missing ``lost`` column as never lost.
+    """
+    p = Path(path)
+    read_track(p, names)  # the same checks of file, header and rows
+    with open(p, newline="", encoding="utf-8") as fh:
+        rows = [r for r in csv.reader(fh) if r]
+    head = rows[0]
+    missing = [f"std_{n}" for n in names if f"std_{n}" not in head]
+    if missing:
+        raise InputError(f"{p}: no uncertainty columns {', '.join(missing)} in the header")
+    cols = [head.index(f"std_{n}") for n in names]
+    li = head.index("lost") if "lost" in head else None
+    std = np.full((len(rows) - 1, len(cols)), np.nan)
+    lost = np.zeros(len(rows) - 1, dtype=bool)
+    for k, r in enumerate(rows[1:]):
+        try:
+            std[k] = [float(r[i]) if r[i].strip() else np.nan for i in cols]
+            lost[k] = li is not None and r[li].strip() not in ("", "0")
+        except (ValueError, IndexError):
+            raise InputError(f"{p} line {k + 2}: malformed row") from None
+    return std, lost

@@ -35,6 +35,9 @@ from .tracks import read_track
 
 log = logging.getLogger(__name__)
 
+#: Ways of learning dynamics: maximum likelihood on the tracked shapes, or EM on the measurements.
+METHODS = ("mle", "em")
+
 
 def parse_shape_space(spec: str | None, default: str) -> tuple[str, int | None]:
     """``"affine"`` → ("affine", None); ``"pca:3"`` → ("pca", 3)."""
@@ -176,12 +179,17 @@ def train(
     outdir: Path,
     write_rrd: bool = True,
     progress: Callable[[str, int], Any] | None = None,
+    method: str = "mle",
 ) -> tuple[Model, list[CycleRecord]]:
     """Run the track → learn cycle on opened training clips (``trackcli.video.Video``).
 
     ``progress(label, n_frames)`` returns a context manager with ``update(1)`` (a progress bar).
-    Writes ``outdir/CLIP.cycleC.csv`` and ``.rrd`` per clip and cycle.
+    Writes ``outdir/CLIP.cycleC.csv`` and ``.rrd`` per clip and cycle.  ``method`` is
+    ``"mle"`` (AC Fig 11.6 on the tracked shapes) or ``"em"`` (:mod:`trackcli.em` on the
+    measurements the tracker aggregated in each frame).
     """
+    if method not in METHODS:
+        raise ConfigError(f"learning method: expected one of {', '.join(METHODS)}, got {method!r}")
     kind, k = parse_shape_space(shape_space, settings.shape_space)
     taus = {round(1.0 / v.fps, 9) for v in clips}
     tau = 1.0 / clips[0].fps
@@ -197,13 +205,20 @@ def train(
         t0 = time.perf_counter()
         rec = CycleRecord(cycle, 0.0)
         sequences, flags, labels = [], [], []
+        measured: list[Any] = []  # per clip, the tracker's (z, S) of each frame (method "em")
         for video in clips:
             stem = Path(str(video.path)).stem or Path(str(video.path)).name
             base = outdir / f"{stem}.cycle{cycle}"
 
-            def make(frames, space=space, dynamics=dynamics):
-                return track_kalman(frames, space, dynamics, settings.measurement, settings.kalman,
-                                    observation=settings.condensation)
+            info: list[Any] = []
+            measured.append(info)
+
+            def make(frames, space=space, dynamics=dynamics, info=info):
+                for result in track_kalman(frames, space, dynamics, settings.measurement, settings.kalman,
+                                           observation=settings.condensation):
+                    if method == "em":
+                        info.append(result.display["information"])
+                    yield result
 
             label = f"cycle {cycle}: {stem}"
             ctx = progress(label, len(video)) if progress else _NullBar()
@@ -220,12 +235,16 @@ def train(
             sequences.append(X)
             flags.append(read_lost(summary.csv, len(X)))
             labels.append(f"{stem} (cycle {cycle})")
+        tracked_space = space
         if kind == "pca" and cycle == 1:
             outlines = [space.to_control(X) for X in sequences]
             held = [Q[~fl] for Q, fl in zip(outlines, flags)]
             space, explained = pca_space(template, np.vstack(held), k)  # type: ignore[arg-type]
             sequences = [space.project(Q) for Q in outlines]
-        dynamics, report = learn_from_sequences(sequences, tau, settings, lost=flags, labels=labels)
+        if method == "em":
+            dynamics, report = _learn_em(measured, sequences, tracked_space, space, tau, settings)
+        else:
+            dynamics, report = learn_from_sequences(sequences, tau, settings, lost=flags, labels=labels)
         if explained is not None:
             report["pca_explained"] = explained
         rec.report = report
@@ -234,6 +253,7 @@ def train(
         log.info("cycle %d: learned from %d frames in %.1f s; spectral radius %.4f",
                  cycle, report.get("n_frames", 0), rec.seconds, report.get("spectral_radius", math.nan))
     provenance = {
+        "method": method,
         "clips": [str(v.path) for v in clips],
         "frames": [len(v) for v in clips],
         "cycles": cycles,
@@ -241,6 +261,18 @@ def train(
         "learning": report,
     }
     return Model(template, space, dynamics, settings, provenance), records
+
+
+def _learn_em(measured: Sequence[Sequence[Any]], sequences: Sequence[np.ndarray], tracked: ShapeSpace,
+              space: ShapeSpace, tau: float, settings: Settings) -> tuple[AR2, dict[str, Any]]:
+    """EM on each clip's per-frame measurements (carried into ``space`` if it is new)."""
+    from .em import InformationSequence, change_space, learn_em
+
+    seqs = []
+    for info, X in zip(measured, sequences):
+        z, S = np.array([z for z, _ in info]), np.array([S for _, S in info])
+        seqs.append(InformationSequence(z, S, X) if space is tracked else change_space(z, S, tracked, space, X))
+    return learn_em(seqs, tau, settings)
 
 
 class _NullBar:
@@ -255,8 +287,14 @@ class _NullBar:
 
 
 def learn_from_tracks(track_paths: Sequence[str], template: Template, settings: Settings, tau: float,
-                      shape_space: str | None) -> Model:
-    """Learn dynamics from track CSVs already made (no tracking)."""
+                      shape_space: str | None, method: str = "mle") -> Model:
+    """Learn dynamics from track CSVs already made (no tracking).
+
+    ``method="em"`` takes each row's shape with its reported standard deviations as the
+    measurement of that frame, and rows marked lost as frames without one.
+    """
+    if method not in METHODS:
+        raise ConfigError(f"learning method: expected one of {', '.join(METHODS)}, got {method!r}")
     kind, k = parse_shape_space(shape_space, settings.shape_space)
     if kind == "pca":
         raise ConfigError("--shape-space pca:K needs tracking (tracked outlines); not available with --from-tracks")
@@ -268,8 +306,13 @@ def learn_from_tracks(track_paths: Sequence[str], template: Template, settings: 
             raise DataError(f"{p}: frames are not evenly spaced; learning needs a regular sequence")
         sequences.append(X)
         flags.append(read_lost(p, len(X)))
-    dynamics, report = learn_from_sequences(sequences, tau, settings, lost=flags,
-                                            labels=[Path(str(p)).name for p in track_paths])
-    provenance = {"tracks": list(map(str, track_paths)), "frames": [len(s) for s in sequences],
+    if method == "em":
+        from .em import information_from_track, learn_em
+
+        dynamics, report = learn_em([information_from_track(p, space.names) for p in track_paths], tau, settings)
+    else:
+        dynamics, report = learn_from_sequences(sequences, tau, settings, lost=flags,
+                                                labels=[Path(str(p)).name for p in track_paths])
+    provenance = {"method": method, "tracks": list(map(str, track_paths)), "frames": [len(s) for s in sequences],
                   "cycles": 0, "shape_space": kind, "learning": report}
     return Model(template, space, dynamics, settings, provenance)
