@@ -66,9 +66,20 @@ def template(clip, work) -> Path:
     return out
 
 
-def test_kalman_smoothing_writes_a_second_track_and_contour_and_steadies_the_track(clip, truth, template, work):
+@pytest.fixture(scope="module")
+def mle_model(clip, template, work) -> Path:
+    """A model learned on the clip: a smoother is only as good as the dynamics it assumes."""
+    model = work / "mle.yaml"
+    run(["learn", "-c", SAMPLE_DATA.parent / "configs" / "sample-clutter.yaml", "--template", template, clip,
+         "-o", model, "--no-rrd"])
+    return model
+
+
+def test_kalman_smoothing_writes_a_second_track_and_contour_and_steadies_the_track(clip, truth, template, work,
+                                                                                   mle_model):
     out = work / "kalman"
-    result = run(["track", clip, "--template", template, "--tracker", "kalman", "--smooth", "-o", out])
+    result = run(["track", clip, "--model", mle_model, "--template", template, "--tracker", "kalman", "--smooth",
+                  "-o", out])
     assert "smoothed -> " in result.output
     filtered, smoothed = rows(out / "train.kalman.csv"), rows(out / "train.kalman.smoothed.csv")
     assert list(filtered[0]) == list(smoothed[0])           # the same track format
@@ -85,11 +96,11 @@ def test_kalman_smoothing_writes_a_second_track_and_contour_and_steadies_the_tra
     assert ru.count_rows(rrd, "video/smoothed", "LineStrips2D:strips") == len(smoothed)
 
 
-def test_condensation_smoothing_lowers_the_centre_error_on_the_training_clip(clip, truth, template, work):
+def test_condensation_smoothing_lowers_the_centre_error_on_the_training_clip(clip, truth, template, work,
+                                                                            mle_model):
     """With a model learned on the clip (the smoother is only as good as the dynamics it assumes)."""
     config = SAMPLE_DATA.parent / "configs" / "sample-clutter.yaml"
-    model = work / "mle.yaml"
-    run(["learn", "-c", config, "--template", template, clip, "-o", model, "--no-rrd"])
+    model = mle_model
     out = work / "condensation"
     run(["track", clip, "-c", config, "--model", model, "--template", template, "--smooth", "--seed", "0",
          "--no-rrd", "-o", out])

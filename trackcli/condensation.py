@@ -276,6 +276,9 @@ class StepInfo(NamedTuple):
     """True when every new sample had zero likelihood (weights fell back to uniform)."""
     ess_before: float
     """Effective sample size of the incoming weights, on which the selection decision rests."""
+    parent_shapes: np.ndarray | None = None
+    """``X_{k-1}`` of each new sample's parent as selected, before ``propose`` moved any
+    (for offline consumers that trace ancestry)."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -353,7 +356,8 @@ def step(
     n_out: int | None = None,
     scheme: str = "multinomial",
     ess_threshold: float | None = None,
-    propose: Callable[[np.ndarray, np.random.Generator], tuple[np.ndarray, np.ndarray]] | None = None,
+    propose: Callable[[np.ndarray, np.ndarray, np.random.Generator], tuple[np.ndarray, np.ndarray, np.ndarray]]
+    | None = None,
 ) -> tuple[ParticleSet, StepInfo]:
     """One CONDENSATION time-step: select, predict, weight (AC Fig 12.6).
 
@@ -379,11 +383,13 @@ def step(
         changes); otherwise the samples keep their weights and are all propagated.  ``None``
         selects every step, as in the papers.
     propose : callable, optional
-        Importance sampling (ICONDENSATION): ``propose(predicted, rng)`` may replace some of
-        the predicted shapes by draws from another proposal and returns ``(shapes,
-        log_correction)``; ``log_correction`` (n,) is added to every log-weight, i.e. the
-        log of prior density over proposal density that keeps the weighted set a fair
-        sample of the posterior.
+        A change to the predicted states before weighting: ``propose(prev, predicted, rng)``
+        with ``prev`` the selected samples' ``X_{k-1}`` and ``predicted`` their new ``X_k``
+        returns ``(prev, predicted, log_correction)``.  It may move some states (a jump of
+        a mixture prior; a draw from another proposal, with its velocity, as in
+        importance sampling, ICONDENSATION); ``log_correction`` (n,) is added to every
+        log-weight, i.e. the log of prior density over proposal density that keeps the
+        weighted set a fair sample of the posterior (zeros for a mixture prior sampled as it is).
 
     Returns
     -------
@@ -413,8 +419,9 @@ def step(
         prev, cur, base = particles.prev, particles.cur, log_w
 
     new = predict(prev, cur, dynamics, rng)
+    parents_cur = cur
     if propose is not None:
-        new, correction = propose(new, rng)
+        cur, new, correction = propose(cur, new, rng)
         base = base + np.asarray(correction, dtype=np.float64)
     ll = np.empty(n_out)
     for b0 in range(0, n_out, LOGLIK_BLOCK):
@@ -432,6 +439,7 @@ def step(
         resampled=bool(do_select),
         degenerate=degenerate,
         ess_before=ess_before,
+        parent_shapes=parents_cur,
     )
     return out, info
 

@@ -120,7 +120,7 @@ class MeasurementSettings:
     edge_sigma: float = _f(1.5, "float", "width of the derivative-of-Gaussian edge operator along normals, px", lo=0.3, hi=10)
     threshold: float = _f(8.0, "float", "contrast threshold, grey levels per px", lo=0)
     polarity: str = _f("any", "str", "edge polarity accepted, relative to the outward normal (the discriminant learns it per normal instead)", choices=("any", "light_to_dark", "dark_to_light"))
-    presence_centre: float = _f(0.4, "float", "fraction of the template's presence score on the first frame (evidence per normal, trackcli.observe) at which the confidence is 0.5", lo=0, hi=1)
+    presence_centre: float = _f(0.3, "float", "fraction of the template's presence score on the first frame (evidence per normal, trackcli.observe) at which the confidence is 0.5", lo=0, hi=1)
     lost_below: float = _f(0.5, "float", "a frame is reported lost when its confidence is below this", lo=0, hi=1)
 
 

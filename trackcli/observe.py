@@ -307,7 +307,7 @@ def presence(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np
     return e + colour_weight * col, e, col
 
 
-def confidence(presence_score: float, spread: float, *, reference: float, centre: float = 0.4) -> float:
+def confidence(presence_score: float, spread: float, *, reference: float, centre: float = 0.3) -> float:
     """A per-frame confidence in [0, 1] that the estimate is on the object.
 
     ``reference`` is the presence score of the template on the frame it starts on: what the
@@ -373,7 +373,8 @@ def reacquisition_proposal(centres: np.ndarray, strengths: np.ndarray, origin: n
 
     A share ``fraction`` of the predicted samples has its translation redrawn from ``g``, a
     mixture of isotropic Gaussians (standard deviation 0.1 object sizes) at the colour peaks
-    ``centres`` weighted by ``strengths``; the other components of those samples are kept.
+    ``centres`` weighted by ``strengths``, at rest (its previous translation set equal to the
+    new one); the other components of those samples are kept.
     The target prior is the dynamics' prediction ``f`` mixed with a small probability
     ``reappear`` that the object is anywhere in the frame (uniform ``u``): while lost, the
     object may come back where the motion model does not expect it.  Every sample then
@@ -385,7 +386,7 @@ def reacquisition_proposal(centres: np.ndarray, strengths: np.ndarray, origin: n
     the weighted set a fair sample of that prior times the likelihood (the importance
     weights of Isard & Blake's ICONDENSATION).
 
-    Returns ``propose(predicted (n, Nx), rng) -> (shapes, log_correction)`` for
+    Returns ``propose(prev, predicted, rng) -> (prev, shapes, log_correction)`` for
     :func:`trackcli.condensation.step`, or None when there is no peak.
     """
     if centres.shape[0] == 0:
@@ -396,17 +397,20 @@ def reacquisition_proposal(centres: np.ndarray, strengths: np.ndarray, origin: n
     means = np.asarray(centres, dtype=np.float64) - np.asarray(origin, dtype=np.float64)[:2]
     log_u = -math.log(frame_size[0] * frame_size[1])
 
-    def propose(new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    def propose(prev: np.ndarray, new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         n = new.shape[0]
         t = new[:, :2]
         mu = t.mean(axis=0)
         cov = np.cov(t.T) + np.eye(2) * (0.05 * size) ** 2
         k = int(round(fraction * n))
         out = new.copy()
+        out_prev = prev.copy()
         if k > 0:
             idx = rng.choice(n, size=k, replace=False)
             comp = rng.choice(means.shape[0], size=k, p=w)
             out[idx, :2] = means[comp] + sd * rng.standard_normal((k, 2))
+            # a sample found this way starts at rest: no velocity from where its parent was
+            out_prev[idx, :2] = out[idx, :2]
         t = out[:, :2]
         log_f = _log_gauss2(t - mu, cov)
         diff = t[:, None, :] - means[None, :, :]
@@ -415,6 +419,6 @@ def reacquisition_proposal(centres: np.ndarray, strengths: np.ndarray, origin: n
         log_g = top + np.log(np.exp(comp_log - top[:, None]).sum(axis=1))
         log_prior = np.logaddexp(math.log1p(-reappear) + log_f, math.log(reappear) + log_u)
         log_q = np.logaddexp(math.log1p(-fraction) + log_f if fraction < 1 else -np.inf, math.log(fraction) + log_g)
-        return out, log_prior - log_q
+        return out_prev, out, log_prior - log_q
 
     return propose

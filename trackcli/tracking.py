@@ -391,6 +391,7 @@ def track_condensation(
         if k == 0:
             particles = cond.ParticleSet(particles.prev, particles.cur, loglik(particles.cur))
             ess = particles.ess
+            ancestry = particles
         else:
             propose = jumps
             if lost_prev and settings.reacquire:
@@ -404,6 +405,7 @@ def track_condensation(
                                         scheme=settings.resampling, ess_threshold=settings.ess_threshold,
                                         propose=propose)
             ess = info.ess
+            ancestry = cond.ParticleSet(info.parent_shapes, particles.cur, particles.log_w)
         k += 1
         w = particles.weights
         X = cond.weighted_mean(particles)
@@ -427,7 +429,9 @@ def track_condensation(
             display["particle_weights"] = w[top] / max(float(w.max()), 1e-300)
         display["particle_centroids"] = particles.cur[:, :2] + space.origin
         display["weights"] = w
-        display["particles"] = particles  # for offline consumers (trackcli.smoothing)
+        # for offline consumers (trackcli.smoothing): each sample's X_{k-1} as its parent had it,
+        # before a jump or a re-acquisition moved it
+        display["particles"] = ancestry
         yield FrameResult(
             index=int(frame.index), time=float(frame.time), X=X, X_std=X_std, contour=contour,
             centroid=centroid, bbox=bbox, n_found=n_found, n_normals=M, gate_rms=float(settings.search),
@@ -443,17 +447,20 @@ def translation_jumps(fraction: float, rms: float):
     abruptly (a kick, a turn of the head, a jolt of the camera).  The motion prior is taken
     as a mixture: with probability ``1 - fraction`` the AR(2) prediction, with probability
     ``fraction`` the same plus an isotropic Gaussian jump of RMS ``rms`` px per axis in
-    translation.  Drawing from this prior needs no importance correction (zero log-weights).
+    translation (a displacement: the previous shape moves with it, so the velocity is the
+    AR(2) model's).  Drawing from this prior needs no importance correction (zero log-weights).
     Returns None when there are no jumps.
     """
     if fraction <= 0 or rms <= 0:
         return None
 
-    def propose(new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    def propose(prev: np.ndarray, new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         hit = rng.random(new.shape[0]) < fraction
-        out = new.copy()
-        out[hit, :2] += rms * rng.standard_normal((int(hit.sum()), 2))
-        return out, np.zeros(new.shape[0])
+        jump = rms * rng.standard_normal((int(hit.sum()), 2))
+        out, out_prev = new.copy(), prev.copy()
+        out[hit, :2] += jump
+        out_prev[hit, :2] += jump  # a displacement: the velocity is the AR(2) model's
+        return out_prev, out, np.zeros(new.shape[0])
 
     return propose
 
@@ -463,10 +470,10 @@ def _chain(first, second):
     if first is None:
         return second
 
-    def propose(new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        a, ca = first(new, rng)
-        b, cb = second(a, rng)
-        return b, ca + cb
+    def propose(prev: np.ndarray, new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        p1, a, ca = first(prev, new, rng)
+        p2, b, cb = second(p1, a, rng)
+        return p2, b, ca + cb
 
     return propose
 

@@ -1,0 +1,223 @@
+"""The default observation model (trackcli.observe): discriminant, colour, confidence, proposals."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from trackcli import measure, observe
+from trackcli.config import CondensationSettings, DynamicsSettings, MeasurementSettings, SubspaceDynamics
+from trackcli.shape_space import similarity
+from trackcli.spline import SplineBasis
+from trackcli.tracking import Presence, contour_summary, handset_dynamics, measurement_sampler, object_size
+
+W, H = 320, 240
+M = 24
+
+
+def ellipse_space(cx: float, cy: float, a: float, b: float, n_ctrl: int = 12):
+    t = 2 * np.pi * np.arange(n_ctrl) / n_ctrl
+    # control points of a closed quadratic B-spline through (roughly) the ellipse
+    k = 1.0 / math.cos(math.pi / n_ctrl)
+    Q = np.concatenate([cx + k * a * np.cos(t), cy + k * b * np.sin(t)])
+    return similarity(SplineBasis(n_ctrl, 2, True), Q)
+
+
+def textured_background(rng: np.random.Generator, strokes: int = 400) -> np.ndarray:
+    """Green-grey background: dense random strokes on the left half, plain with noise on the right."""
+    img = np.full((H, W, 3), (120, 140, 120), np.float64) + rng.normal(0, 4, (H, W, 3))
+    img = np.clip(img, 0, 255).astype(np.uint8)
+    for _ in range(strokes):
+        x, y = rng.integers(0, W // 2, 2)
+        ang = rng.uniform(0, np.pi)
+        L = rng.uniform(5, 25)
+        p1 = (int(x), int(y))
+        p2 = (int(x + L * np.cos(ang)), int(y + L * np.sin(ang)))
+        shade = int(rng.choice([40, 220]))
+        cv2.line(img, p1, p2, (shade, shade, shade), 1, cv2.LINE_AA)
+    return img
+
+
+def object_frame(rng, centre=(240.0, 120.0), axes=(30.0, 40.0)) -> np.ndarray:
+    img = textured_background(rng)
+    cv2.ellipse(img, ((centre[0], centre[1]), (2 * axes[0], 2 * axes[1]), 0.0), (30, 40, 160), -1, cv2.LINE_AA)
+    return img
+
+
+def presence_for(img: np.ndarray, space):
+    m, c = MeasurementSettings(), CondensationSettings()
+    fimg = measure.feature_image(img, sigma=m.smoothing, edge_sigma=m.edge_sigma)
+    sampler = measurement_sampler(space, M)
+    judge = Presence.learn(img, fimg, space, sampler, np.zeros(space.Nx), m, c)
+    return judge, fimg, sampler
+
+
+def test_template_scores_as_the_object_and_the_same_curve_on_texture_as_background():
+    rng = np.random.default_rng(0)
+    img = object_frame(rng)
+    space = ellipse_space(240, 120, 30, 40)
+    judge, fimg, sampler = presence_for(img, space)
+    ev = judge.evidence(img, fimg, space.origin)
+    on = np.zeros(4)
+    on_texture = np.array([-160.0, 0, 0, 0])  # the same outline over the dense strokes
+    X = np.stack([on, on_texture])
+    pts, nrm = space.points_normals(X, sampler)
+    log_d, colour = observe.per_normal(judge.app, ev, pts, nrm, h=judge.h, sigma=judge.sigma,
+                                       threshold=judge.threshold, miss=judge.miss)
+    # log D > 0: more object-like than clutter; on texture the discriminant is negative
+    assert log_d[0].sum() > 10
+    assert log_d[1].sum() < 0
+    assert colour[0].mean() > 1.0 and colour[1].mean() < 0.2
+    # the whole likelihood prefers the object by a wide margin
+    s = judge.score(ev, pts, nrm)
+    assert s[0] - s[1] > 30
+
+
+def test_clutter_likelihood_rewards_texture_where_the_discriminant_does_not():
+    """AC eq 12.2 counts every edge near the curve: dense texture scores like the object."""
+    rng = np.random.default_rng(1)
+    img = textured_background(rng, strokes=3000)
+    cv2.ellipse(img, ((240.0, 120.0), (60.0, 80.0), 0.0), (30, 40, 160), -1, cv2.LINE_AA)
+    space = ellipse_space(240, 120, 30, 40)
+    judge, fimg, sampler = presence_for(img, space)
+    ev = judge.evidence(img, fimg, space.origin)
+    # the outline itself, and the outline moved onto the dense strokes at three sizes (the
+    # "shrinking dot" of a tracker drawn into texture)
+    shifts = np.array([[0.0, 0, 0, 0], [-160.0, 0, 0, 0], [-160.0, -40, -0.5, 0], [-120.0, 30, -0.6, 0]])
+    pts, nrm = space.points_normals(shifts, sampler)
+    c = CondensationSettings()
+    clutter = measure.log_likelihood(fimg, pts, nrm, h=c.search, sigma=c.sigma, alpha=c.alpha, threshold=8.0)
+    disc = judge.score(ev, pts, nrm)
+    assert clutter[1:].max() >= 0.8 * clutter[0]  # the clutter model: texture nearly as good as the object
+    assert disc[0] > disc[1:].max() + 50  # the discriminant: the object wins by far
+
+
+def test_polarity_is_learned_per_normal():
+    """An object darker than the background on its left half and lighter on its right."""
+    img = np.full((H, W, 3), 128, np.uint8)
+    cv2.ellipse(img, ((160.0, 120.0), (80.0, 100.0), 0.0), (200, 200, 200), -1, cv2.LINE_AA)
+    img[:, :160] = np.where(img[:, :160] > 150, 60, 128).astype(np.uint8)
+    space = ellipse_space(160, 120, 40, 50)
+    judge, _, sampler = presence_for(img, space)
+    pts = space.points(np.zeros(4), sampler)
+    pol = judge.app.polarity
+    left = pts[:, 0] < 150
+    right = pts[:, 0] > 170
+    # outward normals: dark inside -> light outside is dark-to-light (+1) on the left half,
+    # light inside -> darker outside is light-to-dark (-1) on the right half
+    assert np.all(pol[left] == 1)
+    assert np.all(pol[right] == -1)
+
+
+def test_confidence_is_relative_to_the_first_frame_and_falls_with_spread():
+    assert observe.confidence(2.0, 0.0, reference=2.0) > 0.9
+    assert observe.confidence(0.6, 0.0, reference=2.0) == pytest.approx(0.5)
+    assert observe.confidence(0.0, 0.0, reference=2.0) < 0.2
+    assert observe.confidence(-3.0, 0.0, reference=2.0) < 1e-3
+    # a barely object-like template still needs evidence above background
+    assert observe.confidence(0.0, 0.0, reference=0.0) < 0.4
+    assert observe.confidence(2.0, 1.0, reference=2.0) == 0.0  # spread over a whole object size
+    assert observe.confidence(float("nan"), 0.0, reference=2.0) == 0.0
+    vals = [observe.confidence(s, 0.1, reference=1.5) for s in np.linspace(-2, 3, 50)]
+    assert np.all(np.diff(vals) >= 0)
+
+
+def test_reacquisition_weights_keep_the_set_a_fair_sample_of_the_prior():
+    """With a flat likelihood, proposal draws carry weights that restore the prior's moments."""
+    rng = np.random.default_rng(3)
+    n = 200_000
+    size = 40.0
+    prior = np.zeros((n, 4))
+    prior[:, :2] = rng.normal(0.0, 10.0, (n, 2))
+    centres = np.array([[100.0 + 150.0, 120.0], [40.0 + 150.0, 60.0]])  # far from the prior, in image coords
+    propose = observe.reacquisition_proposal(centres, np.array([2.0, 1.0]), np.array([150.0, 120.0]), size,
+                                             (W, H), fraction=0.3, reappear=1e-9)
+    prev = prior - 1.0  # moving by (1, 1) per frame
+    out_prev, out, log_c = propose(prev, prior, rng)
+    moved = np.any(out[:, :2] != prior[:, :2], axis=1)
+    assert abs(moved.mean() - 0.3) < 0.01
+    # a sample found by the proposal starts at rest; the others keep their velocity
+    assert np.array_equal(out_prev[moved, :2], out[moved, :2])
+    assert np.array_equal(out_prev[~moved], prev[~moved])
+    w = np.exp(log_c - log_c.max())
+    w /= w.sum()
+    mean = w @ out[:, :2]
+    var = w @ (out[:, :2] - mean) ** 2
+    assert np.allclose(mean, 0.0, atol=0.15)
+    assert np.allclose(var, 100.0, rtol=0.03)
+
+
+def test_colour_peaks_find_an_object_coloured_region_of_the_objects_size():
+    rng = np.random.default_rng(4)
+    first = object_frame(rng, centre=(240.0, 120.0))
+    space = ellipse_space(240, 120, 30, 40)
+    judge, _, _ = presence_for(first, space)
+    later = object_frame(rng, centre=(60.0, 60.0))  # the object now over the textured half
+    centres, strengths = observe.colour_peaks(judge.app.colour_map(later), judge.app.size)
+    assert len(centres) >= 1
+    assert np.hypot(*(centres[0] - (60.0, 60.0))) < 12
+    assert strengths[0] > 1.0
+
+
+# ---------------------------------------------------------------------------------------------
+# Hand-set dynamics in units of the object
+
+
+def _scale_rms(space, settings: DynamicsSettings) -> tuple[float, float]:
+    """RMS relative scale change and translation RMS step per frame of the hand-set model."""
+    dyn = handset_dynamics(space, settings, 1 / 25)
+    P = dyn.steady_state_covariance() if dyn.is_stable() else None
+    return dyn, P
+
+
+@pytest.mark.parametrize("radius", [15.0, 150.0])
+def test_default_deformation_returns_to_the_template_at_any_size(radius):
+    space = ellipse_space(160, 120, radius, radius)
+    dyn = handset_dynamics(space, DynamicsSettings(), 1 / 25)
+    rng = np.random.default_rng(5)
+    X = dyn.simulate(2000, rng)
+    # scale (1 + scos_m1) stays near the template's: a steady state in object units, the same
+    # for a small and a large object, and no drift over 80 s
+    scale = np.hypot(1 + X[:, 2], X[:, 3])
+    assert abs(scale.mean() - 1) < 0.05
+    assert 0.02 < scale.std() < 0.12
+    assert abs(scale[-500:].mean() - 1) < 0.08
+    # translation moves in proportion to the object's size: per-frame steps of a few per cent
+    step = np.hypot(*np.diff(X[:, :2], axis=0).T) / object_size(space)
+    assert 0.01 < np.sqrt(np.mean(step**2)) < 0.2
+
+
+def test_pixel_units_keep_the_books_settings():
+    space = ellipse_space(160, 120, 40, 40)
+    px = DynamicsSettings(units="px", translation=SubspaceDynamics(f=0.0, beta=2.0, rho=2000.0),
+                          deformation=SubspaceDynamics(f=0.0, beta=10.0, rho=50.0))
+    obj = DynamicsSettings(units="object", translation=SubspaceDynamics(f=0.0, beta=2.0, rho=2000.0 / object_size(space)),
+                           deformation=SubspaceDynamics(f=0.0, beta=10.0, rho=50.0 / object_size(space)))
+    a, b = handset_dynamics(space, px, 0.04), handset_dynamics(space, obj, 0.04)
+    assert np.allclose(a.B0, b.B0) and np.allclose(a.A1, b.A1)
+
+
+def test_damped_velocity_translation_has_a_free_position():
+    from trackcli.dynamics import oscillator_coefficients
+
+    a1, a2, b0 = oscillator_coefficients(0.0, 4.0, None, 0.04, gamma0=5.0)
+    assert a1 + a2 == pytest.approx(1.0)  # an eigenvalue at 1: no pull back to a mean position
+    assert -a2 == pytest.approx(math.exp(-4.0 * 0.04))
+    assert b0 == pytest.approx(5.0 * 0.04**1.5)
+
+
+def test_presence_reference_is_the_templates_own_score():
+    rng = np.random.default_rng(6)
+    img = object_frame(rng)
+    space = ellipse_space(240, 120, 30, 40)
+    judge, fimg, sampler = presence_for(img, space)
+    ev = judge.evidence(img, fimg, space.origin)
+    pts, nrm = space.points_normals(np.zeros(4), sampler)
+    conf, log_d = judge.confidence(ev, pts, nrm, 0.0)
+    assert judge.reference > 1.0
+    assert conf > 0.9 and log_d > 0
+    poly, _, _ = contour_summary(space, np.zeros(4))
+    assert judge.app.size == pytest.approx(math.sqrt(abs(cv2.contourArea(poly.astype(np.float32)))), rel=1e-6)

@@ -1,0 +1,103 @@
+"""End to end with the defaults: the tracker says when the object is gone and finds it again.
+
+A synthetic clip (320 x 240, 25 fps): a red-brown oval moves over a cluttered grey-green
+background, is hidden for a second (25 frames; the background alone is drawn), and comes back
+110 px away from where it vanished.  Tracked from the frame-0 box with default settings, as a
+new user would.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from trackcli.cli import cli
+
+W, H = 320, 240
+N = 80
+HIDDEN = range(25, 50)
+
+
+def centre(k: int) -> tuple[float, float] | None:
+    if k in HIDDEN:
+        return None
+    if k < HIDDEN.start:
+        return 90.0 + 2.0 * k, 110.0 + 0.5 * k
+    return 250.0 - 1.5 * (k - HIDDEN.stop), 150.0 - 0.5 * (k - HIDDEN.stop)
+
+
+def background(rng: np.random.Generator) -> np.ndarray:
+    img = np.full((H, W, 3), (110, 130, 115), np.float64) + rng.normal(0, 5, (H, W, 3))
+    img = np.clip(img, 0, 255).astype(np.uint8)
+    for _ in range(120):
+        x, y = (int(v) for v in rng.integers(0, [W, H]))
+        ang = rng.uniform(0, np.pi)
+        L = rng.uniform(10, 40)
+        shade = int(rng.choice([50, 200]))
+        cv2.line(img, (x, y), (int(x + L * np.cos(ang)), int(y + L * np.sin(ang))), (shade, shade, shade), 1,
+                 cv2.LINE_AA)
+    return img
+
+
+@pytest.fixture(scope="module")
+def clip(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("reacquire") / "oval.avi"
+    rng = np.random.default_rng(7)
+    bg = background(rng)
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, (W, H))
+    assert writer.isOpened()
+    for k in range(N):
+        img = bg.copy()
+        c = centre(k)
+        if c is not None:
+            cv2.ellipse(img, (c, (44.0, 56.0), 0.0), (40, 60, 150), -1, cv2.LINE_AA)
+        writer.write(img)
+    writer.release()
+    return path
+
+
+@pytest.fixture(scope="module")
+def track_rows(clip, tmp_path_factory):
+    out = tmp_path_factory.mktemp("reacquire-out")
+    runner = CliRunner()
+    c0 = centre(0)
+    box = f"{c0[0] - 24},{c0[1] - 30},48,60"
+    r = runner.invoke(cli, ["draw", str(clip), "--box", box, "-o", str(out / "t.yaml")], catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    r = runner.invoke(cli, ["track", "--template", str(out / "t.yaml"), str(clip), "-o", str(out), "--no-rrd",
+                            "--seed", "0"], catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    with open(out / "oval.condensation.csv", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def _err(row) -> float:
+    c = centre(int(row["frame"]))
+    return float(np.hypot(float(row["cx"]) - c[0], float(row["cy"]) - c[1]))
+
+
+def test_tracks_and_is_confident_before_the_object_goes(track_rows):
+    before = [r for r in track_rows if int(r["frame"]) < HIDDEN.start]
+    assert max(_err(r) for r in before) < 6
+    assert sum(r["lost"] == "1" for r in before) <= 1
+    assert np.mean([float(r["confidence"]) for r in before]) > 0.7
+
+
+def test_reports_lost_while_the_object_is_hidden(track_rows):
+    hidden = [r for r in track_rows if int(r["frame"]) in HIDDEN]
+    # a frame or two to notice, then lost all the time it is away
+    flags = [r["lost"] == "1" for r in hidden]
+    assert sum(flags) >= len(hidden) - 3
+    assert all(flags[3:])
+
+
+def test_finds_the_object_again_when_it_comes_back(track_rows):
+    after = [r for r in track_rows if int(r["frame"]) >= HIDDEN.stop]
+    back = [r for r in after if int(r["frame"]) >= HIDDEN.stop + 10]  # within 10 frames of its return
+    assert max(_err(r) for r in back) < 6
+    assert not any(r["lost"] == "1" for r in back)
