@@ -279,6 +279,8 @@ class StepInfo(NamedTuple):
     parent_shapes: np.ndarray | None = None
     """``X_{k-1}`` of each new sample's parent as selected, before ``propose`` moved any
     (for offline consumers that trace ancestry)."""
+    loglik: np.ndarray | None = None
+    """``log p(Z | X)`` of every new sample, as ``loglik`` returned it."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -440,6 +442,7 @@ def step(
         degenerate=degenerate,
         ess_before=ess_before,
         parent_shapes=parents_cur,
+        loglik=ll,
     )
     return out, info
 

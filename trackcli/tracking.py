@@ -200,10 +200,19 @@ class Presence:
         return observe.score(self.app, ev, pts, nrm, h=self.h, sigma=self.sigma, threshold=self.threshold,
                              miss=self.miss, colour_weight=self.colour_weight)
 
-    def confidence(self, ev: observe.FrameEvidence, pts: np.ndarray, nrm: np.ndarray, spread: float) -> tuple[float, float]:
-        """``(confidence, log D)`` of one curve, ``spread`` its positional spread in object sizes."""
+    def confidence(self, ev: observe.FrameEvidence, pts: np.ndarray, nrm: np.ndarray, spread: float,
+                   posterior_score: float | None = None) -> tuple[float, float]:
+        """``(confidence, log D)`` of one curve, ``spread`` its positional spread in object sizes.
+
+        ``posterior_score``, when given, is the presence score the sample set puts on the
+        object (its weighted mean score per normal); the larger of it and the curve's own
+        score is judged, so that a mean curve a few pixels off a well-supported posterior, or
+        between the modes of one, is not called lost when the samples are on the object.
+        """
         s, e, _ = observe.presence(self.app, ev, pts, nrm, h=self.h, sigma=self.sigma, threshold=self.threshold,
                                    miss=self.miss, colour_weight=self.colour_weight)
+        if posterior_score is not None and math.isfinite(posterior_score):
+            s = max(s, posterior_score)
         return observe.confidence(s, spread, reference=self.reference, centre=self.centre), e * pts.shape[0]
 
 
@@ -389,7 +398,8 @@ def track_condensation(
             return judge.score(ev, pts, nrm)
 
         if k == 0:
-            particles = cond.ParticleSet(particles.prev, particles.cur, loglik(particles.cur))
+            ll = loglik(particles.cur)
+            particles = cond.ParticleSet(particles.prev, particles.cur, ll)
             ess = particles.ess
             ancestry = particles
         else:
@@ -405,6 +415,7 @@ def track_condensation(
                                         scheme=settings.resampling, ess_threshold=settings.ess_threshold,
                                         propose=propose)
             ess = info.ess
+            ll = info.loglik
             ancestry = cond.ParticleSet(info.parent_shapes, particles.cur, particles.log_w)
         k += 1
         w = particles.weights
@@ -416,7 +427,10 @@ def track_condensation(
         pts, nrm = space.points_normals(X, sampler)
         loglik_mean = float(loglik(X[None])[0])
         spread = float(np.sqrt(X_std[0] ** 2 + X_std[1] ** 2)) / judge.app.size
-        conf, log_d = judge.confidence(ev, pts, nrm, spread)
+        # the evidence the posterior puts on the object: the weighted mean of the samples'
+        # scores per normal (the discriminant only; the others are not in its units)
+        post = float(w @ ll) / M if settings.likelihood == "discriminant" else None
+        conf, log_d = judge.confidence(ev, pts, nrm, spread, posterior_score=post)
         lost_prev = conf < measurement.lost_below
         if np.isfinite(centroid).all():
             centre = centroid
