@@ -31,6 +31,8 @@ Usage::
         [--json FILE] [-- EXTRA TRACK OPTIONS]
 
 Everything after ``--`` is passed to ``trackcli track`` (e.g. ``-- --particles 1000``).
+``--runs K`` tracks every clip with seeds 0..K-1 and averages the scores: one run of a particle
+filter on one clip is a noisy measurement.
 """
 
 from __future__ import annotations
@@ -132,6 +134,23 @@ def _lost_flags(csv: Path, frames: np.ndarray) -> np.ndarray:
         rows = list(csvmod.DictReader(f))
     flag = {int(r["frame"]): r.get("lost", "0") in ("1", "True", "true") for r in rows}
     return np.array([flag.get(int(k), True) for k in frames], dtype=bool)
+
+
+def run_trackcli_seeds(clip: Clip, work: Path, extra: list[str], runs: int) -> tuple[dict, float]:
+    """:func:`run_trackcli` with ``--seed 0 .. runs-1``; scores averaged (counts summed)."""
+    if runs <= 1:
+        return run_trackcli(clip, work, extra)
+    results, wall = [], 0.0
+    for seed in range(runs):
+        res, w = run_trackcli(clip, work, [*extra, "--seed", str(seed)])
+        if "error" in res:
+            return res, w
+        results.append(res)
+        wall += w
+    out = {k: float(np.mean([r[k] for r in results])) for k in ("p20", "p10", "auc", "err_mean")}
+    out.update({k: int(sum(r[k] for r in results)) for k in ("frames", "lost", "bad", "good", "lost_bad", "lost_good")})
+    out["p20_runs"] = [r["p20"] for r in results]
+    return out, wall / runs
 
 
 def run_trackcli(clip: Clip, work: Path, extra: list[str]) -> tuple[dict, float]:
@@ -240,6 +259,8 @@ def main() -> None:
     ap.add_argument("--only", nargs="*", help="clip names (prefix match)")
     ap.add_argument("--json", type=Path, help="write all results here")
     ap.add_argument("--keep", type=Path, help="keep templates and tracks in this folder")
+    ap.add_argument("--runs", type=int, default=1,
+                    help="track every clip with --seed 0..RUNS-1 and average the scores (frame counts are summed)")
     args = ap.parse_args(argv)
 
     seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
@@ -256,7 +277,7 @@ def main() -> None:
     print(head + peer_head)
     results = {}
     for clip in clips:
-        res, wall = run_trackcli(clip, work, extra)
+        res, wall = run_trackcli_seeds(clip, work, extra, args.runs)
         results[clip.name] = res
         if "error" in res:
             print(f"{clip.name:<22} {res['error']}")

@@ -385,7 +385,8 @@ def _scan_chunks(
         strength = (a1 - 0.25 * (a0 - a2) * off)[keep]
         if with_sign:
             # the sign of D at the maximum: +1 dark-to-light, -1 light-to-dark along the normal
-            yield k0, k1, r[keep], nu[keep], strength, np.sign(d[:, 1:-1].reshape(-1)[r * width + j][keep])
+            rk = r[keep]
+            yield k0, k1, rk, nu[keep], strength, np.sign(d[rk, j[keep] + 1])
         else:
             yield k0, k1, r[keep], nu[keep], strength
 

@@ -1,0 +1,108 @@
+"""Whole ``trackcli track`` runs, timed as a user runs them: decode, tracking, CSV and ``.rrd``.
+
+For each clip the template is drawn from the frame-0 box of the ground truth and the command
+
+    trackcli track --template T.yaml CLIP -o OUT --json [--no-rrd]
+
+is run ``--repeat`` times with the default settings.  Printed per clip: frames, the median
+wall time of the command, frames per second of the whole run (frames / wall time, process
+start-up included) and of the run without start-up (frames / (wall - start-up), start-up being
+the median time of ``trackcli --version``), and the tracker's own frames per second (from the
+``--json`` summary: tracking alone, without decoding and recording).
+
+Clips: the sample cluttered clip at 480 x 360 and the same clip shrunk to 320 x 240 (the size
+the speed guard is stated for), plus ``pres_debate.mp4`` (1280 x 720) from the footage folder
+when present.  Run with ``OMP_NUM_THREADS=1`` etc. to hold numpy and OpenCV to one core.
+
+Usage::
+
+    python bench/bench_run.py [--repeat 3] [--no-rrd] [--footage DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+
+from trackcli.evaluate import load_truth  # noqa: E402
+
+
+def _cli(*args: str) -> tuple[float, subprocess.CompletedProcess]:
+    env = dict(os.environ, CI="true")
+    t0 = time.perf_counter()
+    r = subprocess.run([sys.executable, "-m", "trackcli.cli", "-q", *args], capture_output=True, text=True, env=env,
+                       cwd=REPO)
+    return time.perf_counter() - t0, r
+
+
+def shrink(src: Path, dst: Path, size: tuple[int, int]) -> Path:
+    cap = cv2.VideoCapture(str(src))
+    fps = cap.get(cv2.CAP_PROP_FPS) or 25.0
+    out = cv2.VideoWriter(str(dst), cv2.VideoWriter_fourcc(*"MJPG"), fps, size)
+    while True:
+        ok, frame = cap.read()
+        if not ok:
+            break
+        out.write(cv2.resize(frame, size, interpolation=cv2.INTER_AREA))
+    out.release()
+    cap.release()
+    return dst
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--no-rrd", action="store_true")
+    ap.add_argument("--footage", type=Path, default=REPO.parent / "shared" / "footage")
+    args = ap.parse_args()
+    work = Path(tempfile.mkdtemp(prefix="bench-run-"))
+    sample = REPO / "sample_data"
+    box = load_truth(sample / "test.truth.csv").box[0]
+    clips = [("test 480x360", sample / "test.mp4", box)]
+    small = shrink(sample / "test.mp4", work / "test_320.avi", (320, 240))
+    clips.insert(0, ("test 320x240", small, box * (320 / 480)))
+    debate = args.footage / "pres_debate.mp4"
+    if debate.is_file():
+        clips.append(("pres_debate 1280x720", debate, np.array([320.9, 175.2, 103.5, 129.1])))
+    startup = statistics.median(_cli("--version")[0] for _ in range(3))
+    print(f"process start-up (trackcli --version): {startup:.2f} s; load average {os.getloadavg()[0]:.2f}")
+    print(f"{'clip':<22}{'frames':>7}{'wall s':>8}{'run fps':>9}{'fps w/o start':>15}{'tracker fps':>13}")
+    for name, clip, b in clips:
+        tmpl = work / f"{clip.stem}.yaml"
+        _, r = _cli("draw", str(clip), "--box", ",".join(f"{v:.1f}" for v in b), "-o", str(tmpl))
+        if r.returncode:
+            print(f"{name}: draw failed: {r.stderr.strip()}")
+            continue
+        walls, tracker_fps, frames = [], [], 0
+        for i in range(args.repeat):
+            extra = ["--no-rrd"] if args.no_rrd else []
+            wall, r = _cli("track", "--template", str(tmpl), str(clip), "-o", str(work / f"out{i}"), "--json", *extra)
+            if r.returncode:
+                print(f"{name}: track failed: {r.stderr.strip()}")
+                break
+            summary = json.loads(r.stdout.strip().splitlines()[-1])
+            frames = summary["frames"]
+            walls.append(wall)
+            tracker_fps.append(summary["tracker_fps"])
+        if not walls:
+            continue
+        wall = statistics.median(walls)
+        print(f"{name:<22}{frames:>7}{wall:>8.2f}{frames / wall:>9.1f}{frames / max(wall - startup, 1e-9):>15.1f}"
+              f"{statistics.median(tracker_fps):>13.1f}")
+
+
+if __name__ == "__main__":
+    main()
