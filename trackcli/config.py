@@ -165,7 +165,7 @@ class CondensationSettings:
     ess_threshold: float | None = _f(None, "float", "resample only when ESS/N falls below this ratio; null = every frame", lo=0, lo_open=True, hi=1, nullable=True)
     likelihood: str = _f("discriminant", "str", "observation model: discriminant (edges and colour learned on the first frame, trackcli.observe), clutter (AC eq 12.2) or truncated (Isard & Blake 1996 eqs 10-11)", choices=("discriminant", "clutter", "truncated"))
     miss_probability: float = _f(0.1, "float", "discriminant: probability q that the boundary is not detected on a normal", lo=0, lo_open=True, hi=1)
-    colour_weight: float = _f(1.0, "float", "discriminant: weight w_c of the colour term against the edge term", lo=0, hi=100)
+    colour_weight: float = _f(3.0, "float", "discriminant: weight w_c of the colour term against the edge term", lo=0, hi=100)
     reacquire: bool = _f(True, "bool", "when lost, draw a share of the samples from the colour map of the whole frame (importance sampling)")
     reacquire_fraction: float = _f(0.25, "float", "share of the samples drawn from the colour proposal while lost", lo=0, lo_open=True, hi=1)
     jump_fraction: float = _f(0.1, "float", "share of the samples whose predicted position also jumps (the motion prior is a mixture of smooth motion and abrupt moves: kicks, turns, camera shake)", lo=0, hi=1)
