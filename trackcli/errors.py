@@ -55,3 +55,18 @@ class DataError(TrackcliError, ValueError):
     """The data are insufficient or degenerate for the requested computation."""
 
     exit_code = 5
+
+
+def short_repr(value: object, limit: int = 60) -> str:
+    """``repr(value)`` cut to about ``limit`` characters, for one-line messages.
+
+    Large or deeply nested values (from a hostile input file) are abbreviated without
+    being formatted in full.
+    """
+    import reprlib
+
+    r = reprlib.Repr()
+    r.maxlevel, r.maxlist, r.maxtuple, r.maxdict, r.maxset = 2, 4, 4, 4, 4
+    r.maxstring = r.maxother = r.maxlong = limit
+    text = r.repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
