@@ -23,10 +23,11 @@ from typing import Any, Callable, ContextManager, Iterable, Iterator
 
 import numpy as np
 
+from . import __version__
 from .config import Settings, dump_yaml, to_dict
 from .dynamics import AR2
-from .errors import ConfigError, TemplateError
-from .outputs import ensure_dir, write_text
+from .errors import ConfigError, DataError, TemplateError
+from .outputs import output_dir, refuse_overwriting_inputs, write_text
 from .shape_space import ShapeSpace
 from .tracks import TrackWriter
 
@@ -104,6 +105,7 @@ def run_clip(
     jpeg_quality: int = 80,
     progress: Callable[[int], None] | None = None,
     recording_id: str | None = None,
+    properties: dict[str, Any] | None = None,
 ) -> RunSummary:
     """Track ``video`` with ``make_tracker(frames)`` and write the outputs.
 
@@ -115,7 +117,13 @@ def run_clip(
     space : ShapeSpace
         Gives the CSV column names.
     progress : callable, optional
-        Called with 1 after every frame (for a progress bar).
+        Called with 1 after every frame (for a progress bar).  It may raise (e.g.
+        KeyboardInterrupt to stop the run): the outputs are then removed as for any error.
+    recording_id : str, optional
+        Readable name of the recording (its id adds a unique suffix), see
+        :class:`trackcli.recording.Recording`.
+    properties : dict, optional
+        Recording properties, e.g. the seed.
     """
     frames = _TimedFrames(video)
     results = make_tracker(frames)
@@ -129,12 +137,13 @@ def run_clip(
     rec_ctx = None
     rec = None
     log_frame = None
-    if rrd_path is not None:
-        from .recording import Recording
-
-        rec_ctx = Recording(rrd_path, app_id="trackcli", recording_id=recording_id, blueprint="track")
-        rec = rec_ctx.__enter__()
     try:
+        if rrd_path is not None:
+            from .recording import Recording
+
+            rec_ctx = Recording(rrd_path, app_id="trackcli", recording_id=recording_id, blueprint="track",
+                                properties=properties)
+            rec = rec_ctx.__enter__()
         with TrackWriter(csv_path, space.names) as writer:
             if rec is not None:
                 rec.log_params("params", params)
@@ -166,7 +175,7 @@ def run_clip(
             if rec is not None:
                 _record_series(rec, series, hist_rows, hist_edges)
     except BaseException as exc:
-        if rec_ctx is not None:
+        if rec is not None:
             rec_ctx.__exit__(type(exc), exc, exc.__traceback__)
         raise
     if rec_ctx is not None:
@@ -253,6 +262,29 @@ def check_template_frame(template: Any, video: Any) -> None:
                             f"but {video.path} is {video.width}x{video.height}; draw a template on this clip")
 
 
+def warn_if_drawn_elsewhere(template: Any, template_path: str | os.PathLike[str], video: Any) -> bool:
+    """Log a warning if ``template`` was drawn on another clip than ``video``; True if so.
+
+    A template places the object where it was drawn: on another clip of the same size it
+    starts wherever the object happened to be there, and the tracker may never find it.
+    Clips are the same when they are the same file, or (paths stored relative to where
+    ``draw`` ran) when their names are equal.
+    """
+    drawn = getattr(template, "clip", None)
+    if not drawn:
+        return False
+    here = Path(str(video.path))
+    try:
+        same = os.path.samefile(drawn, here)
+    except OSError:
+        same = False
+    if same or Path(drawn).name == here.name:
+        return False
+    log.warning("%s was drawn on %s, not on %s: tracking starts where the object was in that clip "
+                "(draw a template on this clip to start on the object)", template_path, drawn, here)
+    return True
+
+
 def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.PathLike[str] | None,
                    settings: Settings, video: Any) -> TrackingSetup:
     """Decide what is tracked in ``video``.
@@ -287,6 +319,7 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
         if template:
             tmpl = load_template(template)
             check_template_frame(tmpl, video)
+            warn_if_drawn_elsewhere(tmpl, template, video)
             space, X0 = place_space(m.space, tmpl)
             return TrackingSetup(space, place_dynamics(m.dynamics, space, X0, tau, **noise), X0,
                                  f"model {model} placed by template {template}")
@@ -294,7 +327,12 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
                              np.zeros(m.space.Nx), f"model {model}")
     tmpl = load_template(template)
     check_template_frame(tmpl, video)
-    space = build_space(tmpl, settings.shape_space)
+    warn_if_drawn_elsewhere(tmpl, template, video)
+    try:
+        space = build_space(tmpl, settings.shape_space)
+    except DataError:
+        raise TemplateError(f"{template}: the outline is too degenerate for a {settings.shape_space} shape-space "
+                            "(its control points nearly coincide or lie on a line); draw a larger outline") from None
     return TrackingSetup(space, handset_dynamics(space, settings.dynamics, tau), np.zeros(space.Nx),
                          f"template {template} (hand-set dynamics)")
 
@@ -320,14 +358,19 @@ def track_clip(
     name: str | None = None,
     rrd: bool = True,
     progress: Callable[[str, int], ContextManager[Any]] | None = None,
+    inputs: dict[str, Any] | None = None,
 ) -> RunSummary:
     """Track one clip and write its outputs: what ``trackcli track`` does per clip.
 
     Writes, atomically, in ``outdir`` (created if needed):
 
-    - ``NAME.TRACKER.config.yaml``: the effective settings (written first);
     - ``NAME.TRACKER.csv``: per-frame estimates (see :mod:`trackcli.tracks`);
-    - ``NAME.TRACKER.rrd``: the Rerun recording, if ``rrd`` and ``settings.output.rrd``.
+    - ``NAME.TRACKER.rrd``: the Rerun recording, if ``rrd`` and ``settings.output.rrd``;
+    - ``NAME.TRACKER.config.yaml``: the effective settings (written last).
+
+    A run that fails writes none of them (earlier outputs of the same name stay as they
+    were) and removes ``outdir`` again if it created it.  An output that would replace the
+    clip, the model or the template is refused.
 
     Parameters
     ----------
@@ -347,6 +390,9 @@ def track_clip(
     progress : callable, optional
         ``progress(label, n_frames)`` returns a context manager whose value has
         ``update(n)``, called after every frame (e.g. a progress bar).
+    inputs : dict, optional
+        Other input files of the run by label (e.g. ``{"-c/--config": path}``), which the
+        outputs must not replace either.
 
     Returns
     -------
@@ -355,7 +401,8 @@ def track_clip(
     Raises
     ------
     ConfigError
-        Unknown tracker, nothing to track, or a frame selection outside the clip.
+        Unknown tracker, nothing to track, a frame selection outside the clip, or an output
+        that names an input.
     VideoError, ModelError, TemplateError
         An input cannot be read or does not fit this clip.
     """
@@ -365,9 +412,14 @@ def track_clip(
     if tracker not in TRACKERS:
         raise ConfigError(f"tracker: expected one of {', '.join(TRACKERS)}, got {tracker!r}")
     name = name or clip_name(clip)
-    out = ensure_dir(outdir)
+    base = output_base(outdir, name, tracker)
+    csv_path, rrd_path, config_path = (Path(f"{base}{ext}") for ext in (".csv", ".rrd", ".config.yaml"))
+    write_rrd = rrd and settings.output.rrd
+    refuse_overwriting_inputs({"the track CSV": csv_path, "the recording": rrd_path if write_rrd else None,
+                               "the effective configuration": config_path},
+                              {"clip": clip, "model": model, "template": template, **(inputs or {})})
     v = settings.video
-    with open_video(clip, fps=v.fps, start=v.start, end=v.end, step=v.step) as video:
+    with open_video(clip, fps=v.fps, start=v.start, end=v.end, step=v.step) as video, output_dir(outdir):
         setup = tracking_setup(model, template, settings, video)
         space, dynamics, X0 = setup.space, setup.dynamics, setup.X0
         if tracker == "kalman":
@@ -379,12 +431,15 @@ def track_clip(
             def make(frames: Iterable[Any]) -> Iterator[Any]:
                 return tracking.track_condensation(frames, space, dynamics, settings.measurement,
                                                    settings.condensation, rng, X0=X0)
-        base = output_base(out, name, tracker)
-        write_text(Path(f"{base}.config.yaml"), dump_yaml(settings))
         params = {"clip": str(clip), "tracker": tracker, "source": setup.source, "settings": to_dict(settings)}
+        properties = {"seed": settings.seed, "clip": str(clip), "tracker": tracker, "trackcli": __version__}
         bar_ctx = progress(f"{name} ({tracker})", len(video)) if progress else contextlib.nullcontext(_NullBar())
         with bar_ctx as bar:
-            return run_clip(video, make, space, tracker=tracker, csv_path=Path(f"{base}.csv"),
-                            rrd_path=Path(f"{base}.rrd") if (rrd and settings.output.rrd) else None,
-                            params=params, jpeg_quality=settings.output.jpeg_quality,
-                            progress=bar.update, recording_id=f"{name}-{tracker}-{settings.seed}")
+            summary = run_clip(video, make, space, tracker=tracker, csv_path=csv_path,
+                               rrd_path=rrd_path if write_rrd else None,
+                               params=params, jpeg_quality=settings.output.jpeg_quality,
+                               progress=bar.update, recording_id=f"{name}-{tracker}-seed{settings.seed}",
+                               properties=properties)
+        # written with the outputs, not before them: a run that fails leaves no configuration
+        write_text(config_path, dump_yaml(settings))
+        return summary
