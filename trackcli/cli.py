@@ -570,8 +570,11 @@ def simulate_cmd(model_path, n_frames, n_paths, seed, output, size):
     from .model import load_model
     from .simulate import render_paths, simulate_paths, record_paths
 
-    m = load_model(model_path)
+    from .outputs import output_dir, refuse_overwriting_inputs
+
     out = Path(output) if output else Path(model_path).with_name(Path(model_path).stem + "_sim.rrd")
+    refuse_overwriting_inputs({"-o/--output": out, "the PNG": out.with_suffix(".png")}, {"MODEL": model_path})
+    m = load_model(model_path)
     canvas = None
     if size:
         from .draw import parse_numbers
@@ -580,8 +583,13 @@ def simulate_cmd(model_path, n_frames, n_paths, seed, output, size):
         canvas = (int(w), int(h))
     paths = simulate_paths(m, n_frames, n_paths, np.random.default_rng(seed))
     png = out.with_suffix(".png")
-    render_paths(m, paths, png, canvas=canvas)
-    record_paths(m, paths, out, seed=seed)
+    with output_dir(out.parent):
+        try:  # both outputs or none
+            render_paths(m, paths, png, canvas=canvas)
+            record_paths(m, paths, out, seed=seed)
+        except BaseException:
+            png.unlink(missing_ok=True)
+            raise
     click.echo(f"wrote {out} and {png} ({n_paths} paths of {n_frames} frames)")
 
 

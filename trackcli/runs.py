@@ -432,7 +432,8 @@ def track_clip(
                 return tracking.track_condensation(frames, space, dynamics, settings.measurement,
                                                    settings.condensation, rng, X0=X0)
         params = {"clip": str(clip), "tracker": tracker, "source": setup.source, "settings": to_dict(settings)}
-        properties = {"seed": settings.seed, "clip": str(clip), "tracker": tracker, "trackcli": __version__}
+        # the seed as text: exact at any size, and of one type for every run in a process
+        properties = {"seed": str(settings.seed), "clip": str(clip), "tracker": tracker, "trackcli": __version__}
         bar_ctx = progress(f"{name} ({tracker})", len(video)) if progress else contextlib.nullcontext(_NullBar())
         with bar_ctx as bar:
             summary = run_clip(video, make, space, tracker=tracker, csv_path=csv_path,
