@@ -10,10 +10,14 @@ Exit codes (documented in the README):
 =====  ============================================================
 0      success
 1      a run failed (e.g. some clips in a batch failed)
-2      bad command-line usage (Click's own code)
-3      invalid configuration file or option value
-4      input missing, unreadable or malformed (video, template, model, CSV)
-5      the data cannot support the computation (too few frames, singular system)
+2      bad command-line usage (missing or unknown option or argument,
+       conflicting options)
+3      invalid configuration file or option value (Click's range and
+       choice checks included), or an output that would replace an input
+4      input missing, unreadable or malformed (video, template, model,
+       CSV, manifest), or an output that cannot be written
+5      the data cannot support the computation (too few frames,
+       singular system, frames too small to draw on)
 130    interrupted (Ctrl-C)
 =====  ============================================================
 """
