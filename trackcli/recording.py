@@ -359,7 +359,12 @@ class Recording:
                 stream.send_recording_name(self.name)
             flat = _flatten(self.properties)
             if flat:
-                stream.send_property("trackcli", rr.AnyValues(**flat))
+                import pyarrow as pa
+
+                # explicit Arrow arrays: Rerun would otherwise fix each key's type for the whole
+                # process on first use, and a "seed" of another type elsewhere would be dropped
+                stream.send_property("trackcli", rr.AnyValues(**{k: pa.array(v if isinstance(v, list) else [v])
+                                                                  for k, v in flat.items()}))
         except BaseException:
             self._stream = None
             if stream is not None:
