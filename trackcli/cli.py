@@ -410,9 +410,9 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
     from .config import dump_yaml
     from .model import save_model
     from .outputs import output_dir, refuse_overwriting_inputs, write_text
-    from .runs import check_template_frame
+    from .runs import check_template_frame, template_space
     from .template import load_template
-    from .train import learn_from_tracks, train
+    from .train import learn_from_tracks, parse_shape_space, train
 
     settings = _settings(config, {"learning.cycles": cycles, **_video_overrides(fps, start, end, step)})
     tmpl = load_template(template)
@@ -430,6 +430,8 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
         return
     if not clips:
         raise click.UsageError("give at least one training CLIP (or --from-tracks)")
+    kind, _ = parse_shape_space(shape_space, settings.shape_space)
+    template_space(tmpl, template, "affine" if kind == "pca" else kind)  # a degenerate outline names its file
     work = Path(outdir or out_model.with_name(out_model.stem + "_training"))
     refuse_overwriting_inputs({"-o/--output": out_model, "the training configuration": work / "config.yaml"}, inputs)
     videos = []

@@ -285,6 +285,21 @@ def warn_if_drawn_elsewhere(template: Any, template_path: str | os.PathLike[str]
     return True
 
 
+def template_space(template: Any, path: str | os.PathLike[str], kind: str) -> ShapeSpace:
+    """The shape-space ``kind`` on a template, or a TemplateError naming the template file.
+
+    A template whose control points (nearly) coincide or lie on a line cannot carry a
+    similarity or affine shape-space: its columns would be linearly dependent.
+    """
+    from .tracking import build_space
+
+    try:
+        return build_space(template, kind)
+    except DataError:
+        raise TemplateError(f"{path}: the outline is too degenerate for a {kind} shape-space (its control "
+                            "points nearly coincide or lie on a line); draw a larger outline") from None
+
+
 def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.PathLike[str] | None,
                    settings: Settings, video: Any) -> TrackingSetup:
     """Decide what is tracked in ``video``.
@@ -307,7 +322,7 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
     """
     from .model import load_model, place_dynamics, place_space
     from .template import load_template
-    from .tracking import build_space, handset_dynamics
+    from .tracking import handset_dynamics
 
     if not model and not template:
         raise ConfigError("nothing to track: give a model, a template, or both")
@@ -328,11 +343,7 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
     tmpl = load_template(template)
     check_template_frame(tmpl, video)
     warn_if_drawn_elsewhere(tmpl, template, video)
-    try:
-        space = build_space(tmpl, settings.shape_space)
-    except DataError:
-        raise TemplateError(f"{template}: the outline is too degenerate for a {settings.shape_space} shape-space "
-                            "(its control points nearly coincide or lie on a line); draw a larger outline") from None
+    space = template_space(tmpl, template, settings.shape_space)
     return TrackingSetup(space, handset_dynamics(space, settings.dynamics, tau), np.zeros(space.Nx),
                          f"template {template} (hand-set dynamics)")
 
