@@ -2,8 +2,8 @@
 
 :func:`track_clip` is what ``trackcli track`` does for one clip (and what a batch job runs):
 open the clip, decide what is tracked (a learned model placed by a template drawn on this
-clip, a model alone, or a template with hand-set dynamics), write the effective
-configuration, and call :func:`run_clip`.
+clip, a model alone, or a template with hand-set dynamics), call :func:`run_clip`, and write
+the effective configuration with the results (a run that fails writes none of them).
 
 :func:`run_clip` drives one of the frame loops of :mod:`trackcli.tracking`, writes every
 result to the track CSV as it arrives, mirrors it into a Rerun recording, and returns a
