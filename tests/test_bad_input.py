@@ -632,6 +632,12 @@ def test_a_template_from_another_clip_is_warned_about(tmp_path, drawn, caplog):
     with caplog.at_level(logging.WARNING, logger="trackcli"):
         invoke(["track", "--template", template, clip, "-o", tmp_path / "out", "--particles", "30", "--no-rrd"], 0)
     assert "was drawn on" not in caplog.text
+    config = tmp_path / "spread.yaml"  # samples spread over the frame: the template does not place them
+    config.write_text("condensation: {init: steady_state}\n")
+    with caplog.at_level(logging.WARNING, logger="trackcli"):
+        invoke(["track", "--template", template, other, "-c", config, "-o", tmp_path / "out", "--particles", "30",
+                "--no-rrd"], 0)
+    assert "was drawn on" not in caplog.text
 
 
 # 7. noise and inconsistency on stderr (decoder chatter and exit codes are in the sweep)

@@ -301,7 +301,7 @@ def template_space(template: Any, path: str | os.PathLike[str], kind: str) -> Sh
 
 
 def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.PathLike[str] | None,
-                   settings: Settings, video: Any) -> TrackingSetup:
+                   settings: Settings, video: Any, *, starts_at_template: bool = True) -> TrackingSetup:
     """Decide what is tracked in ``video``.
 
     - ``model`` and ``template``: the model's shape-space and learned dynamics, placed where
@@ -312,6 +312,9 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
       (dynamics adapted as above, mean kept);
     - ``template`` alone: the template's shape-space (``settings.shape_space``) with hand-set
       dynamics (``settings.dynamics``).
+
+    With ``starts_at_template`` (the tracker starts where the template was drawn), a template
+    drawn on another clip is warned about (:func:`warn_if_drawn_elsewhere`).
 
     Raises
     ------
@@ -334,7 +337,8 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
         if template:
             tmpl = load_template(template)
             check_template_frame(tmpl, video)
-            warn_if_drawn_elsewhere(tmpl, template, video)
+            if starts_at_template:
+                warn_if_drawn_elsewhere(tmpl, template, video)
             space, X0 = place_space(m.space, tmpl)
             return TrackingSetup(space, place_dynamics(m.dynamics, space, X0, tau, **noise), X0,
                                  f"model {model} placed by template {template}")
@@ -342,7 +346,8 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
                              np.zeros(m.space.Nx), f"model {model}")
     tmpl = load_template(template)
     check_template_frame(tmpl, video)
-    warn_if_drawn_elsewhere(tmpl, template, video)
+    if starts_at_template:
+        warn_if_drawn_elsewhere(tmpl, template, video)
     space = template_space(tmpl, template, settings.shape_space)
     return TrackingSetup(space, handset_dynamics(space, settings.dynamics, tau), np.zeros(space.Nx),
                          f"template {template} (hand-set dynamics)")
@@ -431,7 +436,9 @@ def track_clip(
                               {"clip": clip, "model": model, "template": template, **(inputs or {})})
     v = settings.video
     with open_video(clip, fps=v.fps, start=v.start, end=v.end, step=v.step) as video, output_dir(outdir):
-        setup = tracking_setup(model, template, settings, video)
+        # a CONDENSATION sample set drawn from the steady state does not start at the template
+        at_template = tracker == "kalman" or settings.condensation.init == "template"
+        setup = tracking_setup(model, template, settings, video, starts_at_template=at_template)
         space, dynamics, X0 = setup.space, setup.dynamics, setup.X0
         if tracker == "kalman":
             def make(frames: Iterable[Any]) -> Iterator[Any]:
