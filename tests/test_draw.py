@@ -12,7 +12,7 @@ from click.testing import CliRunner
 from conftest import CLIP_ELLIPSE, CLIP_SIZE, SAMPLE_DATA, sample_clip
 from trackcli import draw
 from trackcli.cli import cli
-from trackcli.errors import DataError, InputError
+from trackcli.errors import ConfigError, DataError, InputError
 from trackcli.spline import dense_polygon
 from trackcli.template import load_template
 
@@ -78,42 +78,42 @@ def test_parse_points_file_with_too_few_points(tmp_path):
 
 @pytest.mark.parametrize("spec", ["10,20 30,40 50", "1,2,3", "1 2 3 4 5 6 7"])
 def test_parse_points_odd_count(spec):
-    with pytest.raises(InputError, match=r"--points: expected x,y pairs, got an odd count"):
+    with pytest.raises(ConfigError, match=r"--points: expected x,y pairs, got an odd count"):
         draw.parse_points(spec)
 
 
 @pytest.mark.parametrize("spec", ["10,20 30,40", "10,20"])
 def test_parse_points_too_few(spec):
-    with pytest.raises(InputError, match="need at least 3 points"):
+    with pytest.raises(ConfigError, match="need at least 3 points"):
         draw.parse_points(spec)
 
 
 @pytest.mark.parametrize("spec", ["head.txt", "ten,twenty thirty,forty 1,2", "a;b;c"])
 def test_parse_points_garbage_that_is_not_a_file(tmp_path, monkeypatch, spec):
     monkeypatch.chdir(tmp_path)
-    with pytest.raises(InputError, match="neither x,y pairs nor an existing points file"):
+    with pytest.raises(ConfigError, match="neither x,y pairs nor an existing points file"):
         draw.parse_points(spec)
 
 
 @pytest.mark.parametrize("spec", ["1,2 3,4 5,--6", "1,2 3,4 5,6e", "1..2,3 4,5 6,7"])
 def test_parse_points_malformed_numbers(spec):
-    with pytest.raises(InputError, match="expected comma-separated numbers"):
+    with pytest.raises(ConfigError, match="expected comma-separated numbers"):
         draw.parse_points(spec)
 
 
 def test_parse_points_non_finite():
-    with pytest.raises(InputError, match="must be finite"):
+    with pytest.raises(ConfigError, match="must be finite"):
         draw.parse_points("1e999,2 3,4 5,6")
 
 
 def test_parse_numbers_counts():
     assert draw.parse_numbers("1,2,3,4", 4, "--box") == [1.0, 2.0, 3.0, 4.0]
     assert draw.parse_numbers("1 2 3 4 30", (4, 5), "--ellipse") == [1.0, 2.0, 3.0, 4.0, 30.0]
-    with pytest.raises(InputError, match=r"^--box: expected 4 numbers, got 3 in '1,2,3'$"):
+    with pytest.raises(ConfigError, match=r"^--box: expected 4 numbers, got 3 in '1,2,3'$"):
         draw.parse_numbers("1,2,3", 4, "--box")
-    with pytest.raises(InputError, match=r"^--ellipse: expected 4 to 5 numbers, got 6"):
+    with pytest.raises(ConfigError, match=r"^--ellipse: expected 4 to 5 numbers, got 6"):
         draw.parse_numbers("1,2,3,4,5,6", (4, 5), "--ellipse")
-    with pytest.raises(InputError, match=r"^--box: expected comma-separated numbers, got 'x,y,w,h'$"):
+    with pytest.raises(ConfigError, match=r"^--box: expected comma-separated numbers, got 'x,y,w,h'$"):
         draw.parse_numbers("x,y,w,h", 4, "--box")
 
 
@@ -148,7 +148,7 @@ def test_ellipse_angle_turns_clockwise_on_screen():
 
 @pytest.mark.parametrize(("a", "b"), [(0.0, 5.0), (5.0, -1.0)])
 def test_ellipse_outline_rejects_non_positive_axes(a, b):
-    with pytest.raises(InputError, match="semi-axes must be positive"):
+    with pytest.raises(ConfigError, match="semi-axes must be positive"):
         draw.ellipse_outline(10.0, 10.0, a, b)
 
 
@@ -271,7 +271,7 @@ def test_box_without_an_object_falls_back_to_the_inscribed_ellipse(caplog):
      ((-100.0, -100.0, 103.0, 103.0), "outside the 160x120 frame")],
 )
 def test_box_errors(box, text):
-    with pytest.raises(InputError, match=text):
+    with pytest.raises(ConfigError, match=text):
         draw.segment_box(np.full((120, 160, 3), 128, np.uint8), box)
 
 

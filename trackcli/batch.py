@@ -86,11 +86,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
-import yaml
 
 from . import __version__
 from .config import Settings, load_settings, settings_from_dict, to_dict
-from .errors import ConfigError, InputError, TrackcliError
+from .errors import ConfigError, InputError, TrackcliError, short_repr
 from .outputs import ensure_dir, partial_name, write_text
 from .runs import TRACKERS, clip_name, output_base, track_clip
 
@@ -279,17 +278,10 @@ def load_manifest(path: str | os.PathLike[str]) -> Manifest:
         Anything else wrong inside it.  Messages start with the manifest's path and name the
         entry and key (``clips[2].template: no such file: ...``).
     """
+    from .outputs import read_yaml_file
+
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such manifest file")
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" line {mark.line + 1}" if mark is not None else ""
-        raise ConfigError(f"{path}{where}: {getattr(exc, 'problem', None) or 'not valid YAML'}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read manifest ({exc})") from None
+    data = read_yaml_file(path, "manifest", InputError, invalid=ConfigError)
     try:
         jobs = _parse(data, path.resolve().parent)
     except (ConfigError, InputError) as exc:
@@ -305,14 +297,14 @@ def _parse(data: Any, base: Path) -> tuple[Job, ...]:
         raise ConfigError(f"{unknown[0]}: unknown key (valid at the top level: format, defaults, clips)")
     fmt = data.get("format", FORMAT)
     if isinstance(fmt, bool) or fmt != FORMAT:
-        raise ConfigError(f"format: this version reads manifest format {FORMAT}, got {fmt!r}")
+        raise ConfigError(f"format: this version reads manifest format {FORMAT}, got {short_repr(fmt)}")
     defaults = data.get("defaults") or {}
     if not isinstance(defaults, dict):
-        raise ConfigError(f"defaults: expected a mapping of clip settings, got {defaults!r}")
+        raise ConfigError(f"defaults: expected a mapping of clip settings, got {short_repr(defaults)}")
     _check_keys(defaults, DEFAULT_KEYS, "defaults")
     clips = data.get("clips")
     if not isinstance(clips, list) or not clips:
-        raise ConfigError(f"clips: expected a non-empty list of clips, got {clips!r}")
+        raise ConfigError(f"clips: expected a non-empty list of clips, got {short_repr(clips)}")
     jobs = [_job(entry, f"clips[{i}]", defaults, base) for i, entry in enumerate(clips)]
     seen: dict[str, str] = {}
     for job in jobs:
@@ -334,7 +326,7 @@ def _job(entry: Any, where: str, defaults: Mapping[str, Any], base: Path) -> Job
     if isinstance(entry, str):
         entry = {"clip": entry}
     if not isinstance(entry, dict):
-        raise ConfigError(f"{where}: expected a clip path or a mapping with 'clip', got {entry!r}")
+        raise ConfigError(f"{where}: expected a clip path or a mapping with 'clip', got {short_repr(entry)}")
     _check_keys(entry, CLIP_KEYS, where)
     if "clip" not in entry:
         raise ConfigError(f"{where}: missing 'clip' (the video file or image folder)")
@@ -352,19 +344,19 @@ def _job(entry: Any, where: str, defaults: Mapping[str, Any], base: Path) -> Job
     tracker, label = get("tracker")
     tracker = "condensation" if tracker is None else tracker
     if tracker not in TRACKERS:
-        raise ConfigError(f"{label}: expected one of {', '.join(TRACKERS)}, got {tracker!r}")
+        raise ConfigError(f"{label}: expected one of {', '.join(TRACKERS)}, got {short_repr(tracker)}")
     object_id = _integer(*get("object"), default=0)
     threshold = _positive(*get("threshold"), default=20.0)
     rrd, label = get("rrd")
     if rrd is None:
         rrd = True
     if not isinstance(rrd, bool):
-        raise ConfigError(f"{label}: expected true or false, got {rrd!r}")
+        raise ConfigError(f"{label}: expected true or false, got {short_repr(rrd)}")
     name, label = get("name")
     name = clip_name(clip) if name is None else name
     if (not isinstance(name, str) or name in ("", ".", "..") or name.startswith(".")
             or any(c in name for c in "/\\\0")):
-        raise ConfigError(f"{label}: expected a folder name (no '/', not starting with '.'), got {name!r}")
+        raise ConfigError(f"{label}: expected a folder name (no '/', not starting with '.'), got {short_repr(name)}")
     settings = _settings(where, entry, defaults, paths["config"])
     return Job(name=name, clip=clip, settings=settings, tracker=tracker, model=paths["model"],
                template=paths["template"], truth=paths["truth"], object_id=object_id, threshold=threshold,
@@ -375,7 +367,7 @@ def _path(value: Any, label: str, base: Path, *, folder_ok: bool) -> str | None:
     if value is None:
         return None
     if not isinstance(value, str) or not value.strip():
-        raise ConfigError(f"{label}: expected a path, got {value!r}")
+        raise ConfigError(f"{label}: expected a path, got {short_repr(value)}")
     p = Path(os.path.expanduser(value))
     p = Path(os.path.normpath(p if p.is_absolute() else base / p))
     if folder_ok and p.exists():
@@ -390,7 +382,7 @@ def _integer(value: Any, label: str, *, default: int) -> int:
     if value is None:
         return default
     if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-        raise ConfigError(f"{label}: expected an integer >= 0, got {value!r}")
+        raise ConfigError(f"{label}: expected an integer >= 0, got {short_repr(value)}")
     return value
 
 
@@ -398,20 +390,20 @@ def _positive(value: Any, label: str, *, default: float) -> float:
     if value is None:
         return default
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-        raise ConfigError(f"{label}: expected a number > 0, got {value!r}")
+        raise ConfigError(f"{label}: expected a number > 0, got {short_repr(value)}")
     return float(value)
 
 
 def _flatten(overrides: Any, label: str) -> dict[str, Any]:
     """Nested mappings and dotted keys as one mapping of dotted keys."""
     if not isinstance(overrides, dict):
-        raise ConfigError(f"{label}: expected a mapping of settings (nested or dotted keys), got {overrides!r}")
+        raise ConfigError(f"{label}: expected a mapping of settings (nested or dotted keys), got {short_repr(overrides)}")
     flat: dict[str, Any] = {}
 
     def walk(node: dict, prefix: str) -> None:
         for k, v in node.items():
             if not isinstance(k, str) or not k:
-                raise ConfigError(f"{label}: setting names are strings, got {k!r}")
+                raise ConfigError(f"{label}: setting names are strings, got {short_repr(k)}")
             key = f"{prefix}{k}"
             if isinstance(v, dict):
                 walk(v, key + ".")
@@ -566,12 +558,33 @@ def _clean(v: Any) -> Any:
 # Running one job
 
 
-def run_job(job: Job, outdir: str | os.PathLike[str]) -> JobResult:
+class _StopCheck:
+    """A progress sink that raises KeyboardInterrupt at the next frame once ``interrupted()``."""
+
+    def __init__(self, interrupted: Callable[[], bool]):
+        self._interrupted = interrupted
+
+    def __enter__(self) -> "_StopCheck":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        pass
+
+    def update(self, n: int) -> None:
+        if self._interrupted():
+            raise KeyboardInterrupt
+
+
+def run_job(job: Job, outdir: str | os.PathLike[str], *,
+            interrupted: Callable[[], bool] | None = None) -> JobResult:
     """Track and score one job, writing its outputs in ``outdir/NAME/``.
 
     Never raises for a failing clip: a :class:`~trackcli.errors.TrackcliError` or any other
     exception becomes a ``failed`` result carrying the error message.  ``KeyboardInterrupt``
-    propagates (after the files being written are removed).
+    propagates after the job's files are removed (those being written and those already
+    complete: an interrupted job leaves nothing).  ``interrupted()``, if given, is asked
+    after every frame and before the results are written; when it says yes, the job stops
+    as if Ctrl-C had been pressed at that point.
 
     Returns
     -------
@@ -583,8 +596,10 @@ def run_job(job: Job, outdir: str | os.PathLike[str]) -> JobResult:
         fingerprint = job_fingerprint(job)
         ensure_dir(folder)
         _clear_outputs(folder, job)
+        check = (lambda label, n: _StopCheck(interrupted)) if interrupted is not None else None
         summary = track_clip(job.clip, settings=job.settings, outdir=folder, model=job.model,
-                             template=job.template, tracker=job.tracker, name=job.name, rrd=job.rrd)
+                             template=job.template, tracker=job.tracker, name=job.name, rrd=job.rrd,
+                             progress=check)
         score = None
         if job.truth is not None:
             from .evaluate import evaluate, load_truth
@@ -596,6 +611,8 @@ def run_job(job: Job, outdir: str | os.PathLike[str]) -> JobResult:
                 raise type(exc)(f"scoring against {job.truth}: {exc}") from None
             _write_json(folder / SCORE_FILE, {"truth": job.truth, "object": job.object_id, "csv": summary.csv,
                                               **score.to_dict()})
+        if interrupted is not None and interrupted():
+            raise KeyboardInterrupt
         files = _output_files(folder, job, scored=score is not None)
         result = JobResult(
             name=job.name, clip=job.clip, status="ok", frames=summary.frames, frames_lost=summary.frames_lost,
@@ -613,6 +630,10 @@ def run_job(job: Job, outdir: str | os.PathLike[str]) -> JobResult:
         return result
     except TrackcliError as exc:
         return _failed(job, folder, str(exc), t0)
+    except KeyboardInterrupt:
+        with contextlib.suppress(OSError):  # also outputs renamed into place before result.json
+            _clear_outputs(folder, job)
+        raise
     except Exception as exc:  # a bug, or a library error trackcli does not translate
         log.debug("job %s failed", job.name, exc_info=True)
         return _failed(job, folder, _one_line(exc), t0)
@@ -720,38 +741,79 @@ def run_batch(
 
 # -- local processes ---------------------------------------------------------------------------
 
-_job_running = False
 _interrupted = False
+_stop_event: Any = None
 
 
-def _worker_init(level: int) -> None:
+def _worker_init(level: int, stop: Any) -> None:
     """Start of a worker process: logging like the parent's; Ctrl-C handling.
 
-    Ctrl-C interrupts the job running in the worker (its files being written are removed)
-    and makes the worker refuse jobs queued after it; an idle worker waits for the parent
-    to shut the pool down instead of dying with a traceback.
+    Ctrl-C (to the worker, or ``stop`` set by the parent) makes the running job stop at its
+    next frame, remove its files and raise KeyboardInterrupt, and the worker refuse jobs
+    queued after it.  The signal handler only sets a flag: the job is never interrupted at
+    an arbitrary point (say, between creating a temporary file and the code that removes
+    it).  Until this runs, a worker ignores Ctrl-C (see :func:`_start_fork_server`); the
+    parent's ``stop`` covers that moment.
     """
+    global _stop_event
     logging.basicConfig(level=level, format="%(levelname)s: %(message)s", stream=sys.stderr)
     logging.getLogger("trackcli").setLevel(level)
+    _stop_event = stop
 
     def on_sigint(signum: int, frame: Any) -> None:
         global _interrupted
         _interrupted = True
-        if _job_running:
-            raise KeyboardInterrupt
 
     signal.signal(signal.SIGINT, on_sigint)
 
 
+def _worker_interrupted() -> bool:
+    return _interrupted or (_stop_event is not None and _stop_event.is_set())
+
+
 def _worker_job(job: Job, outdir: str) -> JobResult:
-    global _job_running
-    if _interrupted:
+    if _worker_interrupted():
         raise KeyboardInterrupt
-    _job_running = True
+    return run_job(job, outdir, interrupted=_worker_interrupted)
+
+
+def _start_fork_server(context: Any) -> None:
+    """Start the fork server (if that is how workers start) ignoring Ctrl-C.
+
+    A worker forked by the server gets the server's original SIGINT disposition until
+    :func:`_worker_init` installs the real handler.  Started with SIGINT ignored (which
+    survives ``exec``), the server hands "ignore" on, so a Ctrl-C that arrives while a worker
+    is still starting cannot kill it with a traceback (which would break the pool and make
+    it terminate the other workers in the middle of their clean-up).  The parent ignores
+    Ctrl-C only for the few milliseconds of the server's fork and exec.
+    """
+    import threading
+
+    if context.get_start_method() != "forkserver":
+        return
+    from multiprocessing import forkserver
+
+    if threading.current_thread() is not threading.main_thread():
+        forkserver.ensure_running()
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
-        return run_job(job, outdir)
+        forkserver.ensure_running()
     finally:
-        _job_running = False
+        signal.signal(signal.SIGINT, old)
+
+
+def _sweep_unfinished(jobs: Iterable[Job], outdir: Path) -> None:
+    """Remove what unfinished jobs left (temporaries, outputs without a result.json).
+
+    Called by the parent after every worker has exited, so nothing is being written any
+    more: whatever moment a worker was interrupted or killed at, no ``.part`` file stays.
+    """
+    for job in jobs:
+        folder = job_folder(outdir, job)
+        if folder.is_dir() and not (folder / RESULT_FILE).is_file():
+            with contextlib.suppress(OSError):
+                _clear_outputs(folder, job)
 
 
 def _run_processes(jobs: list[Job], outdir: Path, workers: int) -> Iterator[JobResult]:
@@ -763,22 +825,33 @@ def _run_processes(jobs: list[Job], outdir: Path, workers: int) -> Iterator[JobR
     # forkserver: workers start from a clean process, not a copy of this (possibly threaded) one
     context = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
     level = logging.getLogger("trackcli").getEffectiveLevel()
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_init,
-                               initargs=(level,))
+    pool = None
+    finished: set[str] = set()
     try:
+        _start_fork_server(context)
+        stop = context.Event()
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_init,
+                                   initargs=(level, stop))
         futures = {pool.submit(_worker_job, job, str(outdir)): job for job in jobs}
         for fut in as_completed(futures):
             job = futures[fut]
             try:
-                yield fut.result()
+                result = fut.result()
             except BrokenProcessPool as exc:
-                yield _failed(job, job_folder(outdir, job), f"worker process died ({_one_line(exc)})")
+                result = _failed(job, job_folder(outdir, job), f"worker process died ({_one_line(exc)})")
             except Exception as exc:
-                yield _failed(job, job_folder(outdir, job), _one_line(exc))
+                result = _failed(job, job_folder(outdir, job), _one_line(exc))
+            if result.status == "ok":
+                finished.add(job.name)
+            yield result
     except BaseException:
-        pool.shutdown(wait=True, cancel_futures=True)
+        if pool is not None:
+            stop.set()  # also reaches workers that were starting when Ctrl-C came
+            pool.shutdown(wait=True, cancel_futures=True)
+        _sweep_unfinished([j for j in jobs if j.name not in finished], outdir)
         raise
     pool.shutdown(wait=True)
+    _sweep_unfinished([j for j in jobs if j.name not in finished], outdir)  # e.g. a worker that died
 
 
 # -- Dask --------------------------------------------------------------------------------------

@@ -20,17 +20,49 @@ log = logging.getLogger("trackcli")
 
 
 class TrackcliGroup(click.Group):
-    """Click group that turns library errors into one-line messages and exit codes."""
+    """Click group that turns every error into one line on stderr and an exit code.
+
+    - library errors (:class:`~trackcli.errors.TrackcliError`): the code of their class;
+    - an invalid option value (Click's ``BadParameter``): 3, like an invalid setting;
+    - other usage errors (missing or unknown options or arguments, conflicting options): 2;
+    - a file system error nothing else translated: 4, naming the file;
+    - Ctrl-C: 130.
+    """
 
     def invoke(self, ctx: click.Context):
         try:
             return super().invoke(ctx)
         except TrackcliError as exc:
-            click.echo(f"Error: {exc}", err=True)
-            ctx.exit(exc.exit_code)
+            _fail(ctx, str(exc), exc.exit_code)
+        except click.MissingParameter as exc:
+            _fail(ctx, _usage_line(exc), 2)
+        except click.BadParameter as exc:
+            _fail(ctx, _usage_line(exc), 3)
+        except click.UsageError as exc:
+            _fail(ctx, _usage_line(exc), 2)
         except KeyboardInterrupt:
             click.echo("Interrupted.", err=True)
             ctx.exit(130)
+        except OSError as exc:
+            name = f"{exc.filename}: " if exc.filename else ""
+            _fail(ctx, f"{name}{exc.strerror or exc}", 4)
+        except (MemoryError, RecursionError) as exc:
+            _fail(ctx, f"out of {'memory' if isinstance(exc, MemoryError) else 'stack'} "
+                       "(is an input unreasonably large or deeply nested?)", 1)
+
+
+def _fail(ctx: click.Context, message: str, code: int) -> None:
+    lines = str(message).strip().splitlines() or [""]
+    click.echo(f"Error: {lines[0]}", err=True)
+    ctx.exit(code)
+
+
+def _usage_line(exc: click.UsageError) -> str:
+    """Click's message, and where to find help, on one line."""
+    text = " ".join(exc.format_message().split())
+    if exc.ctx is not None and exc.ctx.command is not None and exc.ctx.parent is not None:
+        text += f" (see '{exc.ctx.command_path} --help')"
+    return text
 
 
 @click.group(cls=TrackcliGroup, context_settings={"help_option_names": ["-h", "--help"]})
@@ -149,6 +181,7 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, n_ctrl, degree, open
     import cv2
 
     from . import draw
+    from .outputs import atomic_path, output_dir, refuse_overwriting_inputs
     from .template import save_template
     from .video import open_video
 
@@ -158,14 +191,22 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, n_ctrl, degree, open
                                + (f" (got {', '.join(chosen)})" if chosen else ""))
     if open_curve and not points:
         raise click.UsageError("--open goes with --points (boxes, masks and ellipses give closed outlines)")
+    out = Path(output)
+    png = Path(preview) if preview else out.with_suffix(".png")
+    points_file = points if points and Path(points).is_file() else None
+    refuse_overwriting_inputs({"-o/--output": out, "--preview": png, "--rrd": rrd},
+                              {"CLIP": clip, "--mask": mask, "--points": points_file})
     with open_video(clip, fps=fps) as video:
         frame = video.read(frame_index)
     size = (frame.image.shape[1], frame.image.shape[0])
+    draw.check_frame_size(size, str(clip))
     if points:
         outline = draw.parse_points(points)
+        draw.check_outline_in_frame(outline, size, "--points", closed=not open_curve)
         source = "points"
     elif ellipse:
         outline = draw.ellipse_outline(*draw.parse_numbers(ellipse, (4, 5), "--ellipse"))
+        draw.check_outline_in_frame(outline, size, "--ellipse")
         source = f"ellipse {ellipse}"
     elif box:
         b = draw.parse_numbers(box, 4, "--box")
@@ -176,16 +217,21 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, n_ctrl, degree, open
         source = f"mask {mask}"
     template = draw.fit_template(outline, n_ctrl, degree=degree, closed=not open_curve, clip=str(clip),
                                  frame=frame_index, frame_size=size, source=source)
-    out = save_template(output, template)
-    png = Path(preview) if preview else out.with_suffix(".png")
     vis = draw.render_preview(frame.image, template, n_normals=n_normals)
     ok, buf = cv2.imencode(".png", vis)
-    from .outputs import atomic_path
-
-    with atomic_path(png) as tmp:
-        tmp.write_bytes(buf.tobytes())
-    if rrd:
-        draw.record_template(rrd, frame.image, template, n_normals=n_normals)
+    written: list[Path] = []
+    with output_dir(out.parent), output_dir(png.parent), output_dir(Path(rrd).parent if rrd else out.parent):
+        try:  # all outputs or none
+            written.append(save_template(out, template))
+            with atomic_path(png) as tmp:
+                tmp.write_bytes(buf.tobytes())
+            written.append(png)
+            if rrd:
+                draw.record_template(rrd, frame.image, template, n_normals=n_normals)
+        except BaseException:
+            for p in written:
+                p.unlink(missing_ok=True)
+            raise
     log.info("template %s (%d control points) from %s", out, n_ctrl, source)
     click.echo(f"wrote {out} and {png}" + (f" and {rrd}" if rrd else ""))
 
@@ -335,7 +381,6 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
     on stderr and the others still run; the exit code is then 1.
     """
     from .model import load_model
-    from .outputs import ensure_dir
     from .runs import clip_name, track_clip
     from .template import load_template
 
@@ -348,7 +393,6 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
     log.info("settings: %s%s%s", f"config {config}" if config else "the defaults",
              f", options {', '.join(given)}" if given else "", f"; dynamics and shape-space from model {model}"
              if model else "")
-    out = ensure_dir(outdir)
     stems = [clip_name(c) for c in clips]
     if len(set(stems)) != len(stems):
         raise click.UsageError("two clips have the same name; run them into different --outdir folders")
@@ -360,14 +404,16 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
     failures = 0
     for clip, stem in zip(clips, stems):
         try:
-            summary = track_clip(clip, settings=settings, outdir=out, model=model, template=template,
+            summary = track_clip(clip, settings=settings, outdir=outdir, model=model, template=template,
                                  tracker=tracker, name=stem, rrd=not no_rrd, smooth=smooth,
-                                 progress=lambda label, n: _progress(ctx, n, label), explicit=explicit)
+                                 progress=lambda label, n: _progress(ctx, n, label), explicit=explicit,
+                                 inputs={"-c/--config": config})
         except TrackcliError as exc:
             if len(clips) == 1:
                 raise
             failures += 1
-            click.echo(f"Error: {clip}: {exc}", err=True)
+            message = str(exc)
+            click.echo(f"Error: {message if message.startswith(str(clip)) else f'{clip}: {message}'}", err=True)
             continue
         if as_json:
             _echo_json(_clean_json({"kind": "track", **summary.to_dict()}, digits=6))
@@ -426,17 +472,20 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
 
     from .config import dump_yaml
     from .model import save_model
-    from .outputs import ensure_dir, write_text
-    from .runs import check_template_frame
+    from .outputs import output_dir, refuse_overwriting_inputs, write_text
+    from .runs import check_template_frame, template_space
     from .template import load_template
-    from .train import learn_from_tracks, train
+    from .train import learn_from_tracks, parse_shape_space, train
 
     settings = _settings(config, {"learning.cycles": cycles, **_video_overrides(fps, start, end, step)})
     tmpl = load_template(template)
     out_model = Path(output)
+    inputs = {"--template": template, "-c/--config": config,
+              **{f"--from-tracks {t}": t for t in from_tracks}, **{f"CLIP {c}": c for c in clips}}
     if from_tracks:
         if clips:
             raise click.UsageError("give training CLIPS or --from-tracks, not both")
+        refuse_overwriting_inputs({"-o/--output": out_model}, inputs)
         rate = tracks_fps or settings.video.fps or 25.0
         model = learn_from_tracks(from_tracks, tmpl, settings, 1.0 / rate, shape_space, method)
         save_model(out_model, model)
@@ -444,8 +493,10 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
         return
     if not clips:
         raise click.UsageError("give at least one training CLIP (or --from-tracks)")
-    work = ensure_dir(outdir or out_model.with_name(out_model.stem + "_training"))
-    write_text(work / "config.yaml", dump_yaml(settings))
+    kind, _ = parse_shape_space(shape_space, settings.shape_space)
+    template_space(tmpl, template, "affine" if kind == "pca" else kind)  # a degenerate outline names its file
+    work = Path(outdir or out_model.with_name(out_model.stem + "_training"))
+    refuse_overwriting_inputs({"-o/--output": out_model, "the training configuration": work / "config.yaml"}, inputs)
     videos = []
     try:
         for c in clips:
@@ -456,12 +507,16 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
         def bar(label, n):
             return _progress(ctx, n, label)
 
-        model, records = train(videos, tmpl, settings, cycles=settings.learning.cycles, shape_space=shape_space,
-                               outdir=work, write_rrd=not no_rrd, progress=bar, method=method)
+        with output_dir(work):
+            model, records = train(videos, tmpl, settings, cycles=settings.learning.cycles,
+                                   shape_space=shape_space, outdir=work, write_rrd=not no_rrd, progress=bar,
+                                   method=method)
+            # written with the results: a run that fails leaves no configuration behind
+            write_text(work / "config.yaml", dump_yaml(settings))
+            save_model(out_model, model)
     finally:
         for v in videos:
             v.close()
-    save_model(out_model, model)
     _learn_report(model, records, out_model, as_json)
 
 
@@ -635,8 +690,11 @@ def simulate_cmd(model_path, n_frames, n_paths, seed, output, size):
     from .model import load_model
     from .simulate import render_paths, simulate_paths, record_paths
 
-    m = load_model(model_path)
+    from .outputs import output_dir, refuse_overwriting_inputs
+
     out = Path(output) if output else Path(model_path).with_name(Path(model_path).stem + "_sim.rrd")
+    refuse_overwriting_inputs({"-o/--output": out, "the PNG": out.with_suffix(".png")}, {"MODEL": model_path})
+    m = load_model(model_path)
     canvas = None
     if size:
         from .draw import parse_numbers
@@ -645,8 +703,13 @@ def simulate_cmd(model_path, n_frames, n_paths, seed, output, size):
         canvas = (int(w), int(h))
     paths = simulate_paths(m, n_frames, n_paths, np.random.default_rng(seed))
     png = out.with_suffix(".png")
-    render_paths(m, paths, png, canvas=canvas)
-    record_paths(m, paths, out, seed=seed)
+    with output_dir(out.parent):
+        try:  # both outputs or none
+            render_paths(m, paths, png, canvas=canvas)
+            record_paths(m, paths, out, seed=seed)
+        except BaseException:
+            png.unlink(missing_ok=True)
+            raise
     click.echo(f"wrote {out} and {png} ({n_paths} paths of {n_frames} frames)")
 
 

@@ -21,7 +21,7 @@ from typing import Any, Mapping
 
 import yaml
 
-from .errors import ConfigError
+from .errors import ConfigError, short_repr
 
 FORMAT = 1
 
@@ -59,7 +59,7 @@ class _Spec:
             if self.nullable:
                 return None
             raise ConfigError(f"{path}: expected {self.describe()}, got null")
-        bad = ConfigError(f"{path}: expected {self.describe()}, got {value!r}")
+        bad = ConfigError(f"{path}: expected {self.describe()}, got {short_repr(value)}")
         if self.kind == "bool":
             if not isinstance(value, bool):
                 raise bad
@@ -236,7 +236,7 @@ class Settings:
 
 def _build(cls: type, data: Any, path: str) -> Any:
     if not isinstance(data, Mapping):
-        raise ConfigError(f"{path or 'config'}: expected a mapping of settings, got {data!r}")
+        raise ConfigError(f"{path or 'config'}: expected a mapping of settings, got {short_repr(data)}")
     fields = {f.name: f for f in dataclasses.fields(cls)}
     kwargs: dict[str, Any] = {}
     for key, value in data.items():
@@ -272,7 +272,7 @@ def _merge(base: dict, overrides: Mapping[str, Any]) -> dict:
             nxt = node[k]
             if not isinstance(nxt, dict):
                 where = ".".join(keys[: i + 1])
-                raise ConfigError(f"{where}: expected a mapping of settings, got {nxt!r}")
+                raise ConfigError(f"{where}: expected a mapping of settings, got {short_repr(nxt)}")
             node = nxt
         node[keys[-1]] = value
     return out

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import DataError, InputError
+from .errors import ConfigError, DataError, InputError, short_repr
 
 log = logging.getLogger(__name__)
 
@@ -28,19 +28,24 @@ log = logging.getLogger(__name__)
 # Parsing user input
 
 
-def parse_numbers(text: str, count: int | tuple[int, int], what: str) -> list[float]:
-    """Parse ``"a,b,c"`` into floats, checking how many there are."""
+def parse_numbers(text: str, count: int | tuple[int, int], what: str,
+                  error: type[Exception] = ConfigError) -> list[float]:
+    """Parse ``"a,b,c"`` into floats, checking how many there are.
+
+    Raises ``error``: ConfigError (an invalid option value) by default, InputError for a
+    line of an input file.
+    """
     parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
     try:
         values = [float(p) for p in parts]
     except ValueError:
-        raise InputError(f"{what}: expected comma-separated numbers, got {text!r}") from None
+        raise error(f"{what}: expected comma-separated numbers, got {short_repr(text)}") from None
     lo, hi = (count, count) if isinstance(count, int) else count
     if not lo <= len(values) <= hi:
         n = str(lo) if lo == hi else f"{lo} to {hi}"
-        raise InputError(f"{what}: expected {n} numbers, got {len(values)} in {text!r}")
+        raise error(f"{what}: expected {n} numbers, got {len(values)} in {short_repr(text)}")
     if not all(np.isfinite(values)):
-        raise InputError(f"{what}: numbers must be finite, got {text!r}")
+        raise error(f"{what}: numbers must be finite, got {short_repr(text)}")
     return values
 
 
@@ -54,31 +59,69 @@ def parse_points(spec: str) -> np.ndarray:
     looks_numeric = re.fullmatch(r"[\d.,\s+\-eE]+", spec) is not None
     if not looks_numeric:
         if not path.is_file():
-            raise InputError(f"--points: {spec!r} is neither x,y pairs nor an existing points file")
+            raise ConfigError(f"--points: {short_repr(spec)} is neither x,y pairs nor an existing points file")
+        try:
+            text = path.read_text(encoding="utf-8", errors="replace")
+        except OSError as exc:
+            raise InputError(f"{path}: cannot read points file ({exc.strerror or exc})") from None
         rows = []
-        for k, line in enumerate(path.read_text(encoding="utf-8", errors="replace").splitlines(), 1):
+        for k, line in enumerate(text.splitlines(), 1):
             line = line.strip()
             if line and not line.startswith("#"):
-                rows.append(parse_numbers(line, 2, f"{spec} line {k}"))
+                rows.append(parse_numbers(line, 2, f"{spec} line {k}", InputError))
         pts = np.asarray(rows, dtype=float).reshape(-1, 2)
+        if len(pts) < 3:
+            raise InputError(f"{spec}: need at least 3 points, got {len(pts)}")
     else:
         values = parse_numbers(spec, (0, 10**6), "--points")
         if len(values) % 2:
-            raise InputError(f"--points: expected x,y pairs, got an odd count of numbers ({len(values)})")
+            raise ConfigError(f"--points: expected x,y pairs, got an odd count of numbers ({len(values)})")
         pts = np.asarray(values, dtype=float).reshape(-1, 2)
     if len(pts) < 3:
-        raise InputError(f"--points: need at least 3 points, got {len(pts)}")
+        raise ConfigError(f"--points: need at least 3 points, got {len(pts)}")
     return pts
 
 
 # ---------------------------------------------------------------------------------------------
 # Outlines
 
+#: Smallest width and height (px) of the part of an outline inside the frame, and of a frame.
+MIN_OUTLINE_SIDE = 8
+
+
+def check_frame_size(frame_size: tuple[int, int], clip: str) -> None:
+    """Raise DataError if frames of ``frame_size = (w, h)`` are too small to draw on."""
+    w, h = frame_size
+    if w < MIN_OUTLINE_SIDE or h < MIN_OUTLINE_SIDE:
+        raise DataError(f"{clip}: frames are {w}x{h} px, too small to draw a template on "
+                        f"(at least {MIN_OUTLINE_SIDE}x{MIN_OUTLINE_SIDE})")
+
+
+def check_outline_in_frame(outline: np.ndarray, frame_size: tuple[int, int], what: str, *,
+                           closed: bool = True) -> None:
+    """Raise ConfigError if the outline ``(P, 2)`` is tiny or lies (almost) outside the frame.
+
+    The rule is the one ``--box`` follows: the outline's bounding box, cut to the frame
+    ``(w, h)``, must be at least :data:`MIN_OUTLINE_SIDE` px wide and high (an open curve:
+    wide or high).
+    """
+    w, h = frame_size
+    pts = np.asarray(outline, dtype=float)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    size = hi - lo
+    if (size.min() if closed else size.max()) < MIN_OUTLINE_SIDE:
+        raise ConfigError(f"{what}: the outline spans only {size[0]:.3g}x{size[1]:.3g} px (at least "
+                          f"{MIN_OUTLINE_SIDE} px {'each way' if closed else 'one way'})")
+    inside = np.minimum(hi, [w - 1.0, h - 1.0]) - np.maximum(lo, 0.0)
+    if inside.min() < 0 or (inside.min() if closed else inside.max()) < MIN_OUTLINE_SIDE:
+        raise ConfigError(f"{what}: the outline lies (almost) outside the {w}x{h} frame "
+                          f"(at least {MIN_OUTLINE_SIDE}x{MIN_OUTLINE_SIDE} px of it must be inside)")
+
 
 def ellipse_outline(cx: float, cy: float, a: float, b: float, angle_deg: float = 0.0, n: int = 256) -> np.ndarray:
     """Points ``(n, 2)`` on an ellipse with semi-axes ``a`` (along x before rotation) and ``b``."""
     if a <= 0 or b <= 0:
-        raise InputError(f"--ellipse: semi-axes must be positive, got a={a:g}, b={b:g}")
+        raise ConfigError(f"--ellipse: semi-axes must be positive, got a={a:g}, b={b:g}")
     t = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
     c, s = np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))
     x, y = a * np.cos(t), b * np.sin(t)
@@ -127,11 +170,11 @@ def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *
     h_img, w_img = image_bgr.shape[:2]
     x, y, w, h = box
     if w <= 0 or h <= 0:
-        raise InputError(f"--box: width and height must be positive, got {w:g}x{h:g}")
+        raise ConfigError(f"--box: width and height must be positive, got {w:g}x{h:g}")
     x0, y0 = int(round(max(0.0, x))), int(round(max(0.0, y)))
     x1, y1 = int(round(min(float(w_img), x + w))), int(round(min(float(h_img), y + h)))
     if x1 - x0 < 8 or y1 - y0 < 8:
-        raise InputError(f"--box {x:g},{y:g},{w:g},{h:g}: lies (almost) outside the {w_img}x{h_img} frame")
+        raise ConfigError(f"--box {x:g},{y:g},{w:g},{h:g}: lies (almost) outside the {w_img}x{h_img} frame")
     rect = (x0, y0, x1 - x0, y1 - y0)
     mask = np.zeros((h_img, w_img), np.uint8)
     bgd = np.zeros((1, 65), np.float64)

@@ -51,15 +51,18 @@ says nothing about the data.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
+import uuid
 from collections.abc import Mapping, Sequence
+from datetime import timedelta
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .errors import ConfigError, DataError, TrackcliError
+from .errors import ConfigError, DataError, InputError, TrackcliError
 
 log = logging.getLogger(__name__)
 
@@ -281,6 +284,8 @@ def _flatten(params: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
             flat.update(_flatten(value, f"{name}."))
         elif value is None:
             continue
+        elif isinstance(value, int) and not isinstance(value, bool) and not -2**63 <= value < 2**63:
+            flat[name] = str(value)  # beyond int64 (e.g. a seed of 2**70): kept exactly, as text
         elif isinstance(value, (bool, int, float, str)):
             flat[name] = value
         elif isinstance(value, np.generic):
@@ -373,7 +378,12 @@ class Recording:
     app_id : str
         Rerun application id; recordings with the same id share blueprints in the viewer.
     recording_id : str, optional
-        Fixed recording id (e.g. derived from the run's seed); random if None.
+        A readable name for the run (e.g. ``CLIP-TRACKER-seedS``): shown as the recording's
+        name in the viewer and used as the prefix of its id.  The id itself always ends in a
+        random suffix, so two runs opened together never merge into one recording.
+    properties : mapping, optional
+        Recording properties (``trackcli`` in the viewer's recording properties), e.g. the
+        seed; flat keys, values Rerun's ``AnyValues`` accepts.
     blueprint : {"track", "draw", "simulate"} or None
         Saved layout, see :func:`make_blueprint`.
 
@@ -382,16 +392,25 @@ class Recording:
     Every ``log_*`` method logs at the time set by the last :meth:`set_frame`, except the
     ones documented as static.  Colours are RGB or RGBA integers 0–255; widths and radii
     are in image pixels.
+
+    Reproducibility: the same calls give a recording with the same content
+    (``rerun rrd compare`` finds no difference): chunks are cut by size only, never by a
+    timer, and no wall-clock start time is stored.  The bytes still differ from run to run,
+    because Rerun stamps every chunk and row id (TUID) with the wall-clock time it was made
+    and the recording id is unique.
     """
 
     def __init__(self, path: str | os.PathLike[str], *, app_id: str = "trackcli",
-                 recording_id: str | None = None, blueprint: str | None = None) -> None:
+                 recording_id: str | None = None, blueprint: str | None = None,
+                 properties: Mapping[str, Any] | None = None) -> None:
         self.path = Path(path)
         if self.path.name in ("", ".", ".."):
             raise ConfigError(f"recording path {str(path)!r} does not name a file")
         self.tmp_path = self.path.with_name(f".{self.path.name}.part")
         self.app_id = app_id
-        self.recording_id = recording_id
+        self.name = recording_id
+        self.recording_id = f"{recording_id or 'trackcli'}-{uuid.uuid4().hex}"
+        self.properties = dict(properties or {})
         make_blueprint(blueprint)  # validates the name early
         self._kind = blueprint
         self._stream: Any = None
@@ -408,20 +427,44 @@ class Recording:
             raise TrackcliError(f"recording {self.path} is already open")
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
+            with open(self.tmp_path, "wb"):  # fail here, with a clear message, if it cannot be written
+                pass
         except OSError as exc:
-            raise TrackcliError(f"cannot create folder for recording {self.path}: {exc}") from exc
-        stream = rr.RecordingStream(self.app_id, recording_id=self.recording_id)
-        if not stream.is_enabled():
-            raise TrackcliError(
-                f"cannot write recording {self.path}: Rerun logging is disabled "
-                "(RERUN=off in the environment?)"
-            )
-        stream.set_log_time_enabled(False)
+            raise InputError(f"{self.path}: cannot write recording ({exc.strerror or exc})") from None
+        stream = None
         try:
-            stream.save(self.tmp_path)
-        except RuntimeError as exc:  # e.g. the folder is not writable
-            raise TrackcliError(f"cannot write recording {self.path}: {exc}") from exc
-        self._stream = stream
+            # chunks cut by size only (no timer): the same calls give the same chunks
+            batcher = rr.ChunkBatcherConfig(flush_tick=timedelta(days=1), flush_num_bytes=1 << 20)
+            stream = rr.RecordingStream(self.app_id, recording_id=self.recording_id, send_properties=False,
+                                        batcher_config=batcher)
+            if not stream.is_enabled():
+                raise TrackcliError(
+                    f"cannot write recording {self.path}: Rerun logging is disabled "
+                    "(RERUN=off in the environment?)"
+                )
+            stream.set_log_time_enabled(False)
+            try:
+                stream.save(self.tmp_path)
+            except RuntimeError as exc:  # e.g. the folder is not writable
+                raise InputError(f"{self.path}: cannot write recording ({exc})") from None
+            self._stream = stream
+            if self.name:
+                stream.send_recording_name(self.name)
+            flat = _flatten(self.properties)
+            if flat:
+                import pyarrow as pa
+
+                # explicit Arrow arrays: Rerun would otherwise fix each key's type for the whole
+                # process on first use, and a "seed" of another type elsewhere would be dropped
+                stream.send_property("trackcli", rr.AnyValues(**{k: pa.array(v if isinstance(v, list) else [v])
+                                                                  for k, v in flat.items()}))
+        except BaseException:
+            self._stream = None
+            if stream is not None:
+                with contextlib.suppress(Exception):
+                    stream.disconnect()
+            self.tmp_path.unlink(missing_ok=True)
+            raise
         return self
 
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:

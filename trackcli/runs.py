@@ -2,8 +2,8 @@
 
 :func:`track_clip` is what ``trackcli track`` does for one clip (and what a batch job runs):
 open the clip, decide what is tracked (a learned model placed by a template drawn on this
-clip, a model alone, or a template with hand-set dynamics), write the effective
-configuration, and call :func:`run_clip`.
+clip, a model alone, or a template with hand-set dynamics), call :func:`run_clip`, and write
+the effective configuration with the results (a run that fails writes none of them).
 
 :func:`run_clip` drives one of the frame loops of :mod:`trackcli.tracking`, writes every
 result to the track CSV as it arrives, mirrors it into a Rerun recording, and returns a
@@ -23,10 +23,11 @@ from typing import Any, Callable, Collection, ContextManager, Iterable, Iterator
 
 import numpy as np
 
+from . import __version__
 from .config import Settings, dump_yaml, to_dict
 from .dynamics import AR2
-from .errors import ConfigError, TemplateError
-from .outputs import ensure_dir, write_text
+from .errors import ConfigError, DataError, TemplateError
+from .outputs import output_dir, refuse_overwriting_inputs, write_text
 from .shape_space import ShapeSpace
 from .tracks import OutlineColumns, TrackWriter
 
@@ -111,6 +112,7 @@ def run_clip(
     frames_mode: str = "auto",
     smoother: Any = None,
     smooth_csv_path: Path | None = None,
+    properties: dict[str, Any] | None = None,
 ) -> RunSummary:
     """Track ``video`` with ``make_tracker(frames)`` and write the outputs.
 
@@ -122,7 +124,13 @@ def run_clip(
     space : ShapeSpace
         Gives the CSV column names.
     progress : callable, optional
-        Called with 1 after every frame (for a progress bar).
+        Called with 1 after every frame (for a progress bar).  It may raise (e.g.
+        KeyboardInterrupt to stop the run): the outputs are then removed as for any error.
+    recording_id : str, optional
+        Readable name of the recording (its id adds a unique suffix), see
+        :class:`trackcli.recording.Recording`.
+    properties : dict, optional
+        Recording properties, e.g. the seed.
     outline_points : int
         Points of the estimated outline written to every CSV row (0: no outline columns).
     frames_mode : {"auto", "jpeg", "asset"}
@@ -148,11 +156,6 @@ def run_clip(
     rec_ctx = None
     rec = None
     log_frame = None
-    if rrd_path is not None:
-        from .recording import Recording
-
-        rec_ctx = Recording(rrd_path, app_id="trackcli", recording_id=recording_id, blueprint="track")
-        rec = rec_ctx.__enter__()
     smooth_ctx = TrackWriter(smooth_csv_path, space.names, outline) if smoother is not None else contextlib.nullcontext()
     smoothed_centroids: list[tuple[int, float, float, float]] = []
 
@@ -165,6 +168,12 @@ def run_clip(
                 rec.log_contour("video/smoothed", s.contour, color=SMOOTHED_RGB, width=2.0)
 
     try:
+        if rrd_path is not None:
+            from .recording import Recording
+
+            rec_ctx = Recording(rrd_path, app_id="trackcli", recording_id=recording_id, blueprint="track",
+                                properties=properties)
+            rec = rec_ctx.__enter__()
         with TrackWriter(csv_path, space.names, outline) as writer, smooth_ctx as smooth_writer:
             if rec is not None:
                 rec.log_params("params", params)
@@ -209,7 +218,7 @@ def run_clip(
                     rec.send_series("series/centroid_smoothed", c[:, 0].astype(np.int64), c[:, 1], c[:, 2:],
                                     names=["cx", "cy"])
     except BaseException as exc:
-        if rec_ctx is not None:
+        if rec is not None:
             rec_ctx.__exit__(type(exc), exc, exc.__traceback__)
         raise
     if rec_ctx is not None:
@@ -299,8 +308,46 @@ def check_template_frame(template: Any, video: Any) -> None:
                             f"but {video.path} is {video.width}x{video.height}; draw a template on this clip")
 
 
+def warn_if_drawn_elsewhere(template: Any, template_path: str | os.PathLike[str], video: Any) -> bool:
+    """Log a warning if ``template`` was drawn on another clip than ``video``; True if so.
+
+    A template places the object where it was drawn: on another clip of the same size it
+    starts wherever the object happened to be there, and the tracker may never find it.
+    Clips are the same when they are the same file, or (paths stored relative to where
+    ``draw`` ran) when their names are equal.
+    """
+    drawn = getattr(template, "clip", None)
+    if not drawn:
+        return False
+    here = Path(str(video.path))
+    try:
+        same = os.path.samefile(drawn, here)
+    except OSError:
+        same = False
+    if same or Path(drawn).name == here.name:
+        return False
+    log.warning("%s was drawn on %s, not on %s: tracking starts where the object was in that clip "
+                "(draw a template on this clip to start on the object)", template_path, drawn, here)
+    return True
+
+
+def template_space(template: Any, path: str | os.PathLike[str], kind: str) -> ShapeSpace:
+    """The shape-space ``kind`` on a template, or a TemplateError naming the template file.
+
+    A template whose control points (nearly) coincide or lie on a line cannot carry a
+    similarity or affine shape-space: its columns would be linearly dependent.
+    """
+    from .tracking import build_space
+
+    try:
+        return build_space(template, kind)
+    except DataError:
+        raise TemplateError(f"{path}: the outline is too degenerate for a {kind} shape-space (its control "
+                            "points nearly coincide or lie on a line); draw a larger outline") from None
+
+
 def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.PathLike[str] | None,
-                   settings: Settings, video: Any) -> TrackingSetup:
+                   settings: Settings, video: Any, *, starts_at_template: bool = True) -> TrackingSetup:
     """Decide what is tracked in ``video``.
 
     - ``model`` and ``template``: the model's shape-space and learned dynamics, placed where
@@ -312,6 +359,9 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
     - ``template`` alone: the template's shape-space (``settings.shape_space``) with hand-set
       dynamics (``settings.dynamics``).
 
+    With ``starts_at_template`` (the tracker starts where the template was drawn), a template
+    drawn on another clip is warned about (:func:`warn_if_drawn_elsewhere`).
+
     Raises
     ------
     ConfigError
@@ -321,7 +371,7 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
     """
     from .model import load_model, place_dynamics, place_space
     from .template import load_template
-    from .tracking import build_space, handset_dynamics
+    from .tracking import handset_dynamics
 
     if not model and not template:
         raise ConfigError("nothing to track: give a model, a template, or both")
@@ -335,6 +385,8 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
         if template:
             tmpl = load_template(template)
             check_template_frame(tmpl, video)
+            if starts_at_template:
+                warn_if_drawn_elsewhere(tmpl, template, video)
             space, X0 = place_space(m.space, tmpl)
             return TrackingSetup(space, place_dynamics(m.dynamics, space, X0, tau, **noise), X0,
                                  f"model {model} placed by template {template}")
@@ -342,7 +394,9 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
                              np.zeros(m.space.Nx), f"model {model}")
     tmpl = load_template(template)
     check_template_frame(tmpl, video)
-    space = build_space(tmpl, settings.shape_space)
+    if starts_at_template:
+        warn_if_drawn_elsewhere(tmpl, template, video)
+    space = template_space(tmpl, template, settings.shape_space)
     return TrackingSetup(space, handset_dynamics(space, settings.dynamics, tau), np.zeros(space.Nx),
                          f"template {template} (hand-set dynamics)")
 
@@ -370,17 +424,22 @@ def track_clip(
     progress: Callable[[str, int], ContextManager[Any]] | None = None,
     explicit: Collection[str] | None = None,
     smooth: bool = False,
+    inputs: dict[str, Any] | None = None,
 ) -> RunSummary:
     """Track one clip and write its outputs: what ``trackcli track`` does per clip.
 
     Writes, atomically, in ``outdir`` (created if needed):
 
-    - ``NAME.TRACKER.config.yaml``: the effective settings (written first);
     - ``NAME.TRACKER.csv``: per-frame estimates (see :mod:`trackcli.tracks`);
     - ``NAME.TRACKER.rrd``: the Rerun recording, if ``rrd`` and ``settings.output.rrd``;
     - ``NAME.TRACKER.smoothed.csv``: with ``smooth``, the smoothed estimates (Kalman:
       Rauch–Tung–Striebel; CONDENSATION: forward-filtering backward-smoothing; both over
-      the whole clip, see :mod:`trackcli.smoothing`).
+      the whole clip, see :mod:`trackcli.smoothing`);
+    - ``NAME.TRACKER.config.yaml``: the effective settings (written last).
+
+    A run that fails writes none of them (earlier outputs of the same name stay as they
+    were) and removes ``outdir`` again if it created it.  An output that would replace the
+    clip, the model or the template is refused.
 
     Parameters
     ----------
@@ -408,6 +467,9 @@ def track_clip(
         as given.
     smooth : bool
         Also smooth the track offline (see above).
+    inputs : dict, optional
+        Other input files of the run by label (e.g. ``{"-c/--config": path}``), which the
+        outputs must not replace either.
 
     Returns
     -------
@@ -416,7 +478,8 @@ def track_clip(
     Raises
     ------
     ConfigError
-        Unknown tracker, nothing to track, or a frame selection outside the clip.
+        Unknown tracker, nothing to track, a frame selection outside the clip, or an output
+        that names an input.
     VideoError, ModelError, TemplateError
         An input cannot be read or does not fit this clip.
     """
@@ -432,10 +495,18 @@ def track_clip(
         settings, sources = settings_with_model(settings, load_model(model).settings, explicit, f"model {model}")
         for section, source in sources.items():
             log.info("%s settings: %s", section, source)
-    out = ensure_dir(outdir)
+    base = output_base(outdir, name, tracker)
+    csv_path, rrd_path, config_path = (Path(f"{base}{ext}") for ext in (".csv", ".rrd", ".config.yaml"))
+    smooth_path = Path(f"{base}.smoothed.csv") if smooth else None
+    write_rrd = rrd and settings.output.rrd
+    refuse_overwriting_inputs({"the track CSV": csv_path, "the recording": rrd_path if write_rrd else None,
+                               "the effective configuration": config_path, "the smoothed track": smooth_path},
+                              {"clip": clip, "model": model, "template": template, **(inputs or {})})
     v = settings.video
-    with open_video(clip, fps=v.fps, start=v.start, end=v.end, step=v.step) as video:
-        setup = tracking_setup(model, template, settings, video)
+    with open_video(clip, fps=v.fps, start=v.start, end=v.end, step=v.step) as video, output_dir(outdir):
+        # a CONDENSATION sample set drawn from the steady state does not start at the template
+        at_template = tracker == "kalman" or settings.condensation.init == "template"
+        setup = tracking_setup(model, template, settings, video, starts_at_template=at_template)
         space, dynamics, X0 = setup.space, setup.dynamics, setup.X0
         if tracker == "kalman":
             def make(frames: Iterable[Any]) -> Iterator[Any]:
@@ -453,19 +524,20 @@ def track_clip(
 
             smoother = (KalmanTrackSmoother(space, dynamics) if tracker == "kalman"
                         else ParticleSmoother(space, dynamics))
-        base = output_base(out, name, tracker)
         _log_setup(name, tracker, setup, settings, video)
-        write_text(Path(f"{base}.config.yaml"), dump_yaml(settings))
         params = {"clip": str(clip), "tracker": tracker, "source": setup.source, "settings": to_dict(settings)}
+        # the seed as text: exact at any size, and of one type for every run in a process
+        properties = {"seed": str(settings.seed), "clip": str(clip), "tracker": tracker, "trackcli": __version__}
         bar_ctx = progress(f"{name} ({tracker})", len(video)) if progress else contextlib.nullcontext(_NullBar())
         with bar_ctx as bar:
-            summary = run_clip(video, make, space, tracker=tracker, csv_path=Path(f"{base}.csv"),
-                            rrd_path=Path(f"{base}.rrd") if (rrd and settings.output.rrd) else None,
-                            params=params, jpeg_quality=settings.output.jpeg_quality,
-                            progress=bar.update, recording_id=f"{name}-{tracker}-{settings.seed}",
-                            outline_points=settings.output.outline_points,
-                            frames_mode=settings.output.frames, smoother=smoother,
-                            smooth_csv_path=Path(f"{base}.smoothed.csv") if smooth else None)
+            summary = run_clip(video, make, space, tracker=tracker, csv_path=csv_path,
+                               rrd_path=rrd_path if write_rrd else None,
+                               params=params, jpeg_quality=settings.output.jpeg_quality,
+                               progress=bar.update, recording_id=f"{name}-{tracker}-seed{settings.seed}",
+                               properties=properties, outline_points=settings.output.outline_points,
+                               frames_mode=settings.output.frames, smoother=smoother, smooth_csv_path=smooth_path)
+        # written with the outputs, not before them: a run that fails leaves no configuration
+        write_text(config_path, dump_yaml(settings))
         log.info("%s: %d frames decoded in %.2f s, tracked in %.2f s", name, summary.frames, summary.decode_seconds,
                  summary.tracker_seconds)
         return summary

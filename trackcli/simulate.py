@@ -71,7 +71,7 @@ def record_paths(model: Model, paths: np.ndarray, rrd: Path, *, seed: int = 0) -
     space = model.space
     tau = model.dynamics.tau
     n_paths, n_frames, _ = paths.shape
-    with Recording(rrd, recording_id=f"simulate-{seed}", blueprint="simulate") as rec:
+    with Recording(rrd, recording_id=f"simulate-seed{seed}", blueprint="simulate", properties={"seed": seed}) as rec:
         rec.log_params("params", {"model_provenance": model.provenance, "paths": n_paths, "frames": n_frames,
                                   "seed": seed})
         c0, _, _ = contour_summary(space, np.zeros(space.Nx))

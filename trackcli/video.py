@@ -43,6 +43,7 @@ from __future__ import annotations
 import logging
 import math
 import operator
+import os
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -55,6 +56,13 @@ import numpy as np
 from .errors import ConfigError, VideoError
 
 log = logging.getLogger(__name__)
+
+# Decoder chatter ("moov atom not found", "[ WARN...] cap.cpp ...") would print before
+# trackcli's own one-line message about the same file.  Quiet by default; setting the
+# variables in the environment shows it again.
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET, read when FFmpeg is first used
+if "OPENCV_LOG_LEVEL" not in os.environ:
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
 
 #: Suffixes (lower case) of the images read from a folder.
 IMAGE_SUFFIXES: tuple[str, ...] = (".jpg", ".jpeg", ".png")
