@@ -633,7 +633,8 @@ def test_a_template_from_another_clip_is_warned_about(tmp_path, drawn, caplog):
         invoke(["track", "--template", template, clip, "-o", tmp_path / "out", "--particles", "30", "--no-rrd"], 0)
     assert "was drawn on" not in caplog.text
     config = tmp_path / "spread.yaml"  # samples spread over the frame: the template does not place them
-    config.write_text("condensation: {init: steady_state}\n")
+    config.write_text("condensation: {init: steady_state}\n"
+                      "dynamics: {translation: {f: 0.0, beta: 1.0, rho: 2.0, gamma0: null}}\n")
     with caplog.at_level(logging.WARNING, logger="trackcli"):
         invoke(["track", "--template", template, other, "-c", config, "-o", tmp_path / "out", "--particles", "30",
                 "--no-rrd"], 0)

@@ -366,6 +366,11 @@ def track_condensation(
             v[:, :2] = settings.init_speed * rng.standard_normal((particles.n, 2))
             particles = cond.ParticleSet(particles.cur - v, particles.cur, particles.log_w)
     else:
+        if not dynamics.is_stable():
+            raise ConfigError("condensation.init: steady_state needs dynamics with a steady state, and these have "
+                              f"none (spectral radius {dynamics.spectral_radius():.4g}; the default translation is a "
+                              "damped velocity with a free position): use init: template, or give "
+                              "dynamics.translation a rho")
         particles = cond.init_steady_state(dynamics, n0, rng)
     edges = None
     judge: Presence | None = None
