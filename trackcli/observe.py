@@ -258,34 +258,38 @@ def per_normal(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: 
         raise DataError(f"points: expected shape (..., {m}, 2) for {m} normals, got {lead + (2,)}")
     k_total = pts.shape[0]
     pol_all = np.tile(app.polarity, k_total // m)
+    # per normal: the densities of features of the accepted polarity, outside and inside
     half = np.where(pol_all != 0, 0.5, 1.0)
     lam_out = ev.density * half
     lam_in = app.lambda_in * half
     log_ratio_in = np.log(lam_in / lam_out)
     base = h * (lam_out - lam_in)
-    c = 1.0 / (math.sqrt(2.0 * math.pi) * sigma)
+    c = (1.0 - miss) / (math.sqrt(2.0 * math.pi) * sigma)
+    inv_out = (c / lam_out).astype(np.float32)
+    inv_in = (c / lam_in).astype(np.float32)
     scale = np.float32(-0.5 / sigma**2)
     log_d = np.empty(k_total)
     for k0, k1, row, nu, _s, sgn in _scan_chunks(ev.fimg, pts, nrm, float(h), threshold, 0, with_sign=True):
-        pol = pol_all[k0:k1]
-        keep = (pol[row] == 0) | (sgn == pol[row])
+        pol = pol_all[k0:k1][row]
+        keep = (pol == 0) | (sgn == pol)  # on each normal, features of its polarity only
         row, nu = row[keep], nu[keep]
         inside = nu < 0
-        gi = c * np.exp(nu * nu * scale)
-        dens = np.where(inside, lam_in[k0:k1][row], lam_out[k0:k1][row])
-        total = np.bincount(row, weights=gi / dens, minlength=k1 - k0)
+        g = np.exp(nu * nu * scale)
+        g *= np.where(inside, inv_in[k0:k1][row], inv_out[k0:k1][row])
+        total = np.bincount(row, weights=g, minlength=k1 - k0)
         n_in = np.bincount(row[inside], minlength=k1 - k0)
-        log_d[k0:k1] = base[k0:k1] + n_in * log_ratio_in[k0:k1] + np.log(miss + (1.0 - miss) * total)
+        log_d[k0:k1] = base[k0:k1] + n_in * log_ratio_in[k0:k1] + np.log(miss + total)
     # colour: the log-ratio map sampled inside (-offsets) and outside (+offsets) every normal
     offs = app.colour_offsets
     u = np.concatenate([-offs[::-1], offs])
     colour = np.empty(k_total)
     step = 8192
     nk = offs.size
+    # (mean inside - mean outside) / 2 as one product with the profile
+    weights = np.concatenate([np.full(nk, 0.5 / nk), np.full(nk, -0.5 / nk)]).astype(np.float32)
     for k0 in range(0, k_total, step):
         k1 = min(k0 + step, k_total)
-        prof = _remap_rows(ev.cmap, pts[k0:k1], nrm[k0:k1], u)
-        colour[k0:k1] = 0.5 * (prof[:, :nk].mean(axis=1) - prof[:, nk:].mean(axis=1))
+        colour[k0:k1] = _remap_rows(ev.cmap, pts[k0:k1], nrm[k0:k1], u) @ weights
     return log_d.reshape(lead), colour.reshape(lead)
 
 
