@@ -21,10 +21,13 @@ echo "== 3/5 track: the cluttered test clip with CONDENSATION and, for compariso
 $T draw sample_data/test.mp4 --box 166,104,131,153 -o "$OUT/head-test.yaml"
 $T track -c $C --model "$OUT/head-model.yaml" --template "$OUT/head-test.yaml" sample_data/test.mp4 -o "$OUT" --seed 0
 $T track -c $C --tracker kalman --model "$OUT/head-model.yaml" --template "$OUT/head-test.yaml" sample_data/test.mp4 -o "$OUT"
+echo "-- and with the defaults alone: no model, no config, the template drawn on this clip"
+$T track --template "$OUT/head-test.yaml" sample_data/test.mp4 -o "$OUT/defaults" --seed 0
 
 echo "== 4/5 eval: both against the ground truth (lost = centroid more than 8 px off)"
 echo "-- CONDENSATION"; $T eval "$OUT/test.condensation.csv" sample_data/test.truth.csv --lost-threshold 8
 echo "-- Kalman";        $T eval "$OUT/test.kalman.csv" sample_data/test.truth.csv --lost-threshold 8
+echo "-- CONDENSATION with the defaults"; $T eval "$OUT/defaults/test.condensation.csv" sample_data/test.truth.csv --lost-threshold 8
 echo "-- both, as precision and success plots; and a contact sheet of the CONDENSATION track"
 $T eval "$OUT/test.condensation.csv" "$OUT/test.kalman.csv" sample_data/test.truth.csv --plot "$OUT/test.plots.png" > /dev/null
 $T render "$OUT/test.condensation.csv" sample_data/test.mp4 --sheet 8 --tile-width 200 \

@@ -167,6 +167,7 @@ class CondensationSettings:
     miss_probability: float = _f(0.1, "float", "discriminant: probability q that the boundary is not detected on a normal", lo=0, lo_open=True, hi=1)
     colour_weight: float = _f(3.0, "float", "discriminant: weight w_c of the colour term against the edge term", lo=0, hi=100)
     reacquire: bool = _f(True, "bool", "when lost, draw a share of the samples from the colour map of the whole frame (importance sampling)")
+    reacquire_after: int = _f(3, "int", "frames in a row the tracker must be lost before the colour proposal is used (a short dip, e.g. the object brushing the frame's edge, is left to the motion model)", lo=1, hi=1000)
     reacquire_fraction: float = _f(0.25, "float", "share of the samples drawn from the colour proposal while lost", lo=0, lo_open=True, hi=1)
     jump_fraction: float = _f(0.1, "float", "share of the samples whose predicted position also jumps (the motion prior is a mixture of smooth motion and abrupt moves: kicks, turns, camera shake)", lo=0, hi=1)
     jump_size: float = _f(0.3, "float", "RMS size of such a jump, in object sizes (square root of the template's area)", lo=0, hi=10)

@@ -376,6 +376,7 @@ def track_condensation(
     judge: Presence | None = None
     centre = space.origin + X0[:2]
     lost_prev = False
+    lost_run = 0  # frames lost in a row
     k = 0
     for frame in frames:
         fimg = _feature_image(frame.image, measurement)
@@ -409,7 +410,7 @@ def track_condensation(
             ancestry = particles
         else:
             propose = jumps
-            if lost_prev and settings.reacquire:
+            if lost_run >= settings.reacquire_after and settings.reacquire:
                 peaks, strengths = observe.colour_peaks(ev.cmap, judge.app.size)
                 reacquire = observe.reacquisition_proposal(
                     peaks, strengths, space.origin, judge.app.size, (frame.image.shape[1], frame.image.shape[0]),
@@ -437,6 +438,7 @@ def track_condensation(
         post = float(w @ ll) / M if settings.likelihood == "discriminant" else None
         conf, log_d = judge.confidence(ev, pts, nrm, spread, posterior_score=post)
         lost_prev = conf < measurement.lost_below
+        lost_run = lost_run + 1 if lost_prev else 0
         if np.isfinite(centroid).all():
             centre = centroid
         n_found = _normals_with_features(fimg, pts, nrm, settings, measurement)
