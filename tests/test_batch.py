@@ -206,6 +206,19 @@ def test_a_broken_clip_fails_alone(inputs, tmp_path):
     assert_complete(out / "bouncing_ball", "bouncing_ball", "kalman")
     assert_complete(out / "test", "test", "condensation")
     assert_no_partial_output(out / "corrupt")
+    # a clip's JSON object starts with the same keys as in `track --json`, failed or not
+    from trackcli.runs import CLIP_JSON_KEYS
+
+    for c in lines[:-1]:
+        assert c["kind"] == "clip" and list(c)[: len(CLIP_JSON_KEYS)] == list(CLIP_JSON_KEYS)
+    track = run(["-q", "track", "--template", inputs / "test.yaml", corrupt, SAMPLE_DATA / "test.mp4",
+                 "--end", "5", "--no-rrd", "--json", "-o", tmp_path / "track"], 1)
+    tracked = json_lines(track.stdout)
+    assert [c["status"] for c in tracked] == ["failed", "ok"]
+    for c in tracked:
+        assert c["kind"] == "clip" and list(c)[: len(CLIP_JSON_KEYS)] == list(CLIP_JSON_KEYS)
+    assert str(corrupt) in tracked[0]["error"] and tracked[0]["frames"] is None
+    assert tracked[1]["frames"] == 5 and tracked[1]["csv"].endswith("test.condensation.csv")
     # the table names the failed clip
     table = run(["batch", manifest, "-o", out], 1).stdout
     row = next(line for line in table.splitlines() if line.startswith("corrupt"))
@@ -450,8 +463,9 @@ def test_track_goes_on_after_a_failing_clip(ellipse_clip, tmp_path):
     out = tmp_path / "out"
     result = run(["track", corrupt, ellipse_clip, "--template", template, "--tracker", "kalman", "--no-rrd",
                   "-o", out, "--json"], 1)
-    (summary,) = json_lines(result.stdout)
-    assert summary["frames"] == 6 and Path(summary["csv"]).is_file()
+    failed, summary = json_lines(result.stdout)  # the failed clip has its JSON line too
+    assert failed["status"] == "failed" and failed["frames"] is None
+    assert summary["status"] == "ok" and summary["frames"] == 6 and Path(summary["csv"]).is_file()
     lines = result.stderr.splitlines()
     assert lines[0].startswith(f"Error: {corrupt}: ") and lines[-1] == "1 of 2 clips failed"
     assert not list(out.glob("corrupt*.csv"))

@@ -248,7 +248,7 @@ def test_track_json_has_kind_and_rounded_floats(tmp_path, ellipse_clip, caplog):
     result = run(["-v", "track", ellipse_clip, "--template", tmpl, "--particles", "40", "--seed", "3", "--no-rrd",
                   "--json", "-o", tmp_path], 0)
     data = json.loads(result.stdout)
-    assert data["kind"] == "track" and data["frames"] == CLIP_FRAMES
+    assert data["kind"] == "clip" and data["status"] == "ok" and data["frames"] == CLIP_FRAMES
     floats = [v for v in data.values() if isinstance(v, float)]
     assert floats and all(len(repr(v).lstrip("-").replace(".", "").lstrip("0").split("e")[0]) <= 6 for v in floats)
     # -v says where the settings, the start and the sampling came from

@@ -193,6 +193,7 @@ class JobResult:
     clip: str
     status: str
     error: str | None = None
+    tracker: str = "condensation"
     frames: int | None = None
     frames_lost: int | None = None
     tracker_fps: float | None = None
@@ -211,9 +212,12 @@ class JobResult:
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-able dictionary (non-finite numbers become None)."""
         return {
-            "name": self.name, "clip": self.clip, "status": self.status, "error": self.error,
+            # the keys of CLIP_JSON_KEYS first: the same shape as `track --json` gives a clip
+            "name": self.name, "clip": self.clip, "tracker": self.tracker, "status": self.status, "error": self.error,
             "frames": self.frames, "frames_lost": self.frames_lost,
-            "tracker_fps": _finite(self.tracker_fps, 2), "precision": _finite(self.precision),
+            "tracker_fps": _finite(self.tracker_fps, 2),
+            "csv": self.outputs.get("csv"), "rrd": self.outputs.get("rrd"),
+            "precision": _finite(self.precision),
             "centre_error_mean": _finite(self.centre_error_mean), "success_auc": _finite(self.success_auc),
             "mean_iou": _finite(self.mean_iou), "seconds": round(self.seconds, 3),
             "folder": self.folder, "outputs": dict(self.outputs),
@@ -524,7 +528,7 @@ def completed_result(job: Job, outdir: str | os.PathLike[str]) -> JobResult | No
             "seconds")
     values = {k: stored.get(k) for k in keys}
     values["seconds"] = float(values["seconds"] or 0.0)
-    return JobResult(name=job.name, clip=job.clip, status="skipped", folder=str(folder),
+    return JobResult(name=job.name, clip=job.clip, status="skipped", tracker=job.tracker, folder=str(folder),
                      outputs={k: str(p) for k, p in files.items()}, **values)
 
 
@@ -615,7 +619,8 @@ def run_job(job: Job, outdir: str | os.PathLike[str], *,
             raise KeyboardInterrupt
         files = _output_files(folder, job, scored=score is not None)
         result = JobResult(
-            name=job.name, clip=job.clip, status="ok", frames=summary.frames, frames_lost=summary.frames_lost,
+            name=job.name, clip=job.clip, status="ok", tracker=job.tracker, frames=summary.frames,
+            frames_lost=summary.frames_lost,
             tracker_fps=summary.tracker_fps,
             precision=score.precision if score else None,
             centre_error_mean=score.centre_error_mean if score else None,
@@ -653,8 +658,8 @@ def _worker_id() -> dict[str, Any]:
 
 def _failed(job: Job, folder: Path, message: str, t0: float | None = None) -> JobResult:
     seconds = time.perf_counter() - t0 if t0 is not None else 0.0
-    return JobResult(name=job.name, clip=job.clip, status="failed", error=message, seconds=seconds,
-                     folder=str(folder))
+    return JobResult(name=job.name, clip=job.clip, status="failed", error=message, tracker=job.tracker,
+                     seconds=seconds, folder=str(folder))
 
 
 # ---------------------------------------------------------------------------------------------

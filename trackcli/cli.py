@@ -381,7 +381,7 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
     on stderr and the others still run; the exit code is then 1.
     """
     from .model import load_model
-    from .runs import clip_name, track_clip
+    from .runs import clip_json, clip_name, track_clip
     from .template import load_template
 
     if not model and not template:
@@ -413,10 +413,13 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
                 raise
             failures += 1
             message = str(exc)
-            click.echo(f"Error: {message if message.startswith(str(clip)) else f'{clip}: {message}'}", err=True)
+            message = message if message.startswith(str(clip)) else f"{clip}: {message}"
+            click.echo(f"Error: {message}", err=True)
+            if as_json:
+                _echo_json(clip_json(stem, clip, tracker, error=message))
             continue
         if as_json:
-            _echo_json(_clean_json({"kind": "track", **summary.to_dict()}, digits=6))
+            _echo_json(_clean_json(clip_json(stem, clip, tracker, summary), digits=6))
         else:
             click.echo(summary.line())
     if failures:

@@ -76,6 +76,27 @@ class RunSummary:
                 + (f", smoothed -> {self.smoothed_csv}" if self.smoothed_csv else ""))
 
 
+#: The keys every per-clip JSON object starts with, in ``track --json`` and ``batch --json``
+#: alike (a failed clip has them too, with None where nothing was measured).
+CLIP_JSON_KEYS = ("kind", "name", "clip", "tracker", "status", "error", "frames", "frames_lost", "tracker_fps",
+                  "csv", "rrd")
+
+
+def clip_json(name: str, clip: Any, tracker: str, summary: RunSummary | None = None,
+              error: str | None = None) -> dict[str, Any]:
+    """The JSON object of one clip of ``track --json``: :data:`CLIP_JSON_KEYS`, then the run's details."""
+    d: dict[str, Any] = {"kind": "clip", "name": name, "clip": str(clip), "tracker": tracker,
+                         "status": "failed" if summary is None else "ok", "error": error,
+                         "frames": None, "frames_lost": None, "tracker_fps": None, "csv": None, "rrd": None}
+    if summary is not None:
+        extra = summary.to_dict()
+        d.update({k: extra.pop(k) for k in ("frames", "frames_lost", "tracker_fps", "csv", "rrd")})
+        extra.pop("clip", None)
+        extra.pop("tracker", None)
+        d.update(extra)
+    return d
+
+
 class _TimedFrames:
     """Wrap a frame iterable, recording each frame and the time spent decoding."""
 
