@@ -221,6 +221,25 @@ def test_kalman_with_the_same_model_loses_lock(clutter_runs):
     in_lock = frames.centre_error[10:] <= LOCK_PX
     longest = max((len(run_) for run_ in "".join("1" if x else "0" for x in in_lock).split("0")), default=0)
     assert longest < 20
+    # and says so: its own `lost` flag marks nearly every frame that is more than 20 px off
+    flags = _lost_flags(clutter_runs / "test.kalman.csv", frames.frame)
+    off = frames.centre_error > 20
+    assert off.sum() > 100 and flags[off].mean() > 0.9
+
+
+def test_condensation_says_lost_rarely_while_on_the_object(clutter_runs):
+    _, frames = _scores(clutter_runs / "test.condensation.csv")
+    flags = _lost_flags(clutter_runs / "test.condensation.csv", frames.frame)
+    on = frames.centre_error < 5
+    assert on.sum() > 140 and flags[on].mean() < 0.05
+
+
+def _lost_flags(csv_path, frame_numbers) -> np.ndarray:
+    import csv as csv_module
+
+    with open(csv_path, newline="") as fh:
+        lost = {int(r["frame"]): r["lost"] == "1" for r in csv_module.DictReader(fh)}
+    return np.array([lost[int(k)] for k in frame_numbers])
 
 
 def test_the_same_seed_gives_the_same_csv_and_another_seed_does_not(clutter_runs, tmp_path):
