@@ -34,9 +34,10 @@ it is not, features of either sign count.
 Colour: foreground against background
 -------------------------------------
 A histogram of the pixels inside the template (foreground) and one of the background (an even
-mixture of a ring around the template and the rest of the frame), in HSV with 16 hue × 8 saturation × 4 value bins (hue and saturation carry most
-of the information and change little with lighting; the coarse value bins separate dark from
-light greys, whose hue is meaningless), give the log-ratio ``L(c) = log p_fg(c) / p_bg(c)``,
+mixture of a ring around the template and the rest of the frame), in HSV with 16 hue × 8
+saturation × 4 value bins (hue and saturation carry most of the information and change little
+with lighting; the coarse value bins separate dark from light greys, whose hue is
+meaningless), give the log-ratio ``L(c) = log p_fg(c) / p_bg(c)``,
 clipped to ``[-3, 3]``.  Every frame is mapped to ``L`` once (a back-projection), and along
 each normal ``L`` is averaged at a few offsets inside and outside the curve; the colour term of
 normal ``i`` is ``c_i = (mean_inside L - mean_outside L) / 2``, in ``[-3, 3]``: positive when
@@ -52,6 +53,13 @@ divided by the number of normals: the average evidence per normal that the objec
 It does not vanish when every sample of a particle set is wrong — a curve on background has a
 score near or below zero whatever the other samples see — and is what the trackers' confidence
 and ``lost`` verdict are computed from (:func:`confidence`).
+
+Re-acquisition
+--------------
+While the tracker is lost, :func:`colour_peaks` finds object-coloured regions of the object's
+size anywhere in the frame and :func:`reacquisition_proposal` draws a share of the samples
+there, with the importance weights that keep the set a fair sample of the posterior (Isard &
+Blake's ICONDENSATION).
 """
 
 from __future__ import annotations
@@ -65,7 +73,8 @@ import numpy as np
 from .errors import DataError
 from .measure import _as_image, _as_normals, _remap_rows, _scan_chunks
 
-__all__ = ["Appearance", "FrameEvidence", "confidence", "evidence", "learn_appearance", "presence", "score"]
+__all__ = ["Appearance", "FrameEvidence", "colour_peaks", "confidence", "evidence", "feature_density", "hsv_bins",
+           "learn_appearance", "per_normal", "presence", "reacquisition_proposal", "score"]
 
 #: HSV histogram bins (hue, saturation, value).
 HIST_BINS = (16, 8, 4)
