@@ -379,6 +379,12 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
       CLIP.TRACKER.smoothed.csv with --smooth: smoothed estimates (same columns)
     and one summary line on stdout.  With several CLIPS, a clip that fails is reported
     on stderr and the others still run; the exit code is then 1.
+
+    Every frame gets a confidence (0-1) that the estimate is on the object, from the
+    contour discriminant and the colour learned on the first frame; a frame is lost
+    when it is below 0.5, and the summary line counts those frames.  While lost,
+    CONDENSATION also searches the whole frame for object-coloured regions and picks
+    the object up again when it shows (condensation.reacquire).
     """
     from .model import load_model
     from .runs import clip_json, clip_name, track_clip
