@@ -337,9 +337,17 @@ def track_condensation(
 ) -> Iterator[FrameResult]:
     """Run CONDENSATION over ``frames`` (AC Fig 12.6).
 
-    The observation model is ``settings.likelihood``: ``"clutter"``, AC eq 12.2
-    (:func:`trackcli.measure.log_likelihood`), or ``"truncated"``, the truncated Gaussian of
+    The observation model is ``settings.likelihood``: ``"discriminant"`` (the default), the
+    contour discriminant with polarity per normal and colour learned on the first frame
+    (:class:`Presence`, :mod:`trackcli.observe`); ``"clutter"``, AC eq 12.2
+    (:func:`trackcli.measure.log_likelihood`); or ``"truncated"``, the truncated Gaussian of
     Isard & Blake 1996 eqs 10–11 (:func:`trackcli.measure.truncated_log_likelihood`).
+
+    Every frame's confidence and ``lost`` verdict come from :class:`Presence`.  The motion
+    prior is a mixture of the AR(2) prediction and jumps (:func:`translation_jumps`); once
+    the tracker has been lost for ``settings.reacquire_after`` frames in a row, a share of the
+    samples is drawn from the colour proposal of :func:`trackcli.observe.reacquisition_proposal`
+    with its importance weights.
 
     The sample set starts either as a Gaussian about ``X0`` (``settings.init = "template"``,
     AC §12.4, "positioned by hand") or from the steady state of the motion model
@@ -435,7 +443,8 @@ def track_condensation(
         spread = float(np.sqrt(X_std[0] ** 2 + X_std[1] ** 2)) / judge.app.size
         # the evidence the posterior puts on the object: the weighted mean of the samples'
         # scores per normal (the discriminant only; the others are not in its units)
-        post = float(w @ ll) / M if settings.likelihood == "discriminant" else None
+        held = w > 0
+        post = float(w[held] @ ll[held]) / M if settings.likelihood == "discriminant" else None
         conf, log_d = judge.confidence(ev, pts, nrm, spread, posterior_score=post)
         lost_prev = conf < measurement.lost_below
         lost_run = lost_run + 1 if lost_prev else 0
