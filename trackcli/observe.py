@@ -34,11 +34,11 @@ it is not, features of either sign count.
 Colour: foreground against background
 -------------------------------------
 A histogram of the pixels inside the template (foreground) and one of the background (an even
-mixture of a ring around the template and the rest of the frame), in HSV with 16 hue × 8
+mixture of a ring around the template and the rest of the frame), in HSV with 8 hue × 8
 saturation × 4 value bins (hue and saturation carry most of the information and change little
 with lighting; the coarse value bins separate dark from light greys, whose hue is
-meaningless), give the log-ratio ``L(c) = log p_fg(c) / p_bg(c)``,
-clipped to ``[-3, 3]``.  Every frame is mapped to ``L`` once (a back-projection), and along
+meaningless; 256 bins in all, so that mapping a frame is a byte lookup), give the log-ratio
+``L(c) = log p_fg(c) / p_bg(c)``, clipped to ``[-3, 3]``.  Every frame is mapped to ``L`` once (a back-projection), and along
 each normal ``L`` is averaged at a few offsets inside and outside the curve; the colour term of
 normal ``i`` is ``c_i = (mean_inside L - mean_outside L) / 2``, in ``[-3, 3]``: positive when
 the curve separates object-coloured from background-coloured pixels.  The models are kept as
@@ -77,7 +77,7 @@ __all__ = ["Appearance", "FrameEvidence", "colour_peaks", "confidence", "evidenc
            "learn_appearance", "per_normal", "presence", "reacquisition_proposal", "score"]
 
 #: HSV histogram bins (hue, saturation, value).
-HIST_BINS = (16, 8, 4)
+HIST_BINS = (8, 8, 4)
 #: Clip of the colour log-ratio.
 COLOUR_CLIP = 3.0
 #: Smallest clutter density used, features per pixel (a clean background has almost none).
@@ -112,7 +112,7 @@ class Appearance:
 
     def colour_map(self, frame_bgr: np.ndarray) -> np.ndarray:
         """The colour log-ratio ``L`` of every pixel of a frame: float32 (H, W) in [-3, 3]."""
-        return self.lut.reshape(-1)[hsv_bins(frame_bgr)]
+        return cv2.LUT(hsv_bins(frame_bgr), self.lut.reshape(1, -1))
 
 
 @dataclass(frozen=True, eq=False)
@@ -127,18 +127,20 @@ class FrameEvidence:
     """Clutter density ``λ`` around the object, features (of any sign) per pixel."""
 
 
-# Per-channel tables from 8-bit HSV (hue 0-179) to the flat bin index of HIST_BINS.
-_BIN_H = ((np.arange(256) * HIST_BINS[0]) // 180).clip(max=HIST_BINS[0] - 1) * (HIST_BINS[1] * HIST_BINS[2])
-_BIN_S = ((np.arange(256) * HIST_BINS[1]) // 256) * HIST_BINS[2]
-_BIN_V = (np.arange(256) * HIST_BINS[2]) // 256
-_BIN_H, _BIN_S, _BIN_V = (a.astype(np.uint16) for a in (_BIN_H, _BIN_S, _BIN_V))
+# One table for the three 8-bit HSV channels (hue 0-179): each channel's share of the flat bin
+# index of HIST_BINS, which fits a byte (prod(HIST_BINS) == 256), so that the whole mapping is
+# two cv2.LUT calls and one cv2.transform per frame.
+_BIN_TABLE = np.zeros((1, 256, 3), np.uint8)
+_BIN_TABLE[0, :, 0] = ((np.arange(256) * HIST_BINS[0]) // 180).clip(max=HIST_BINS[0] - 1) * (HIST_BINS[1] * HIST_BINS[2])
+_BIN_TABLE[0, :, 1] = ((np.arange(256) * HIST_BINS[1]) // 256) * HIST_BINS[2]
+_BIN_TABLE[0, :, 2] = (np.arange(256) * HIST_BINS[2]) // 256
+_SUM_CHANNELS = np.ones((1, 3), np.float32)
 
 
 def hsv_bins(frame_bgr: np.ndarray) -> np.ndarray:
-    """Flat HSV histogram bin of every pixel: uint16 (H, W) in ``[0, prod(HIST_BINS))``."""
+    """Flat HSV histogram bin of every pixel: uint8 (H, W) in ``[0, prod(HIST_BINS))``."""
     hsv = cv2.cvtColor(_bgr(frame_bgr), cv2.COLOR_BGR2HSV)
-    h, s, v = cv2.split(hsv)
-    return _BIN_H[h] + _BIN_S[s] + _BIN_V[v]
+    return cv2.transform(cv2.LUT(hsv, _BIN_TABLE), _SUM_CHANNELS)
 
 
 def _bgr(frame: np.ndarray) -> np.ndarray:
