@@ -216,7 +216,8 @@ def test_presence_reference_is_the_templates_own_score():
     judge, fimg, sampler = presence_for(img, space)
     ev = judge.evidence(img, fimg, space.origin)
     pts, nrm = space.points_normals(np.zeros(4), sampler)
-    conf, log_d = judge.confidence(ev, pts, nrm, 0.0)
+    conf, log_d, total = judge.confidence(ev, pts, nrm, 0.0)
+    assert total == pytest.approx(float(judge.score(ev, pts[None], nrm[None])[0]))
     assert judge.reference > 1.0
     assert conf > 0.9 and log_d > 0
     poly, _, _ = contour_summary(space, np.zeros(4))

@@ -201,8 +201,9 @@ class Presence:
                              miss=self.miss, colour_weight=self.colour_weight)
 
     def confidence(self, ev: observe.FrameEvidence, pts: np.ndarray, nrm: np.ndarray, spread: float,
-                   posterior_score: float | None = None) -> tuple[float, float]:
-        """``(confidence, log D)`` of one curve, ``spread`` its positional spread in object sizes.
+                   posterior_score: float | None = None) -> tuple[float, float, float]:
+        """``(confidence, log D, log-likelihood)`` of one curve, ``spread`` its positional spread in
+        object sizes; the log-likelihood is :meth:`score` of the curve.
 
         ``posterior_score``, when given, is the presence score the sample set puts on the
         object (its weighted mean score per normal); the larger of it and the curve's own
@@ -211,9 +212,10 @@ class Presence:
         """
         s, e, _ = observe.presence(self.app, ev, pts, nrm, h=self.h, sigma=self.sigma, threshold=self.threshold,
                                    miss=self.miss, colour_weight=self.colour_weight)
+        total = s * pts.shape[0]
         if posterior_score is not None and math.isfinite(posterior_score):
             s = max(s, posterior_score)
-        return observe.confidence(s, spread, reference=self.reference, centre=self.centre), e * pts.shape[0]
+        return observe.confidence(s, spread, reference=self.reference, centre=self.centre), e * pts.shape[0], total
 
 
 # ---------------------------------------------------------------------------------------------
@@ -289,7 +291,7 @@ def track_kalman(
         est_pts, est_nrm = space.points_normals(X, sampler)
         ev = judge.evidence(frame.image, fimg, centroid)
         spread = float(np.hypot(state.X_std[0], state.X_std[1])) / judge.app.size
-        conf, log_d = judge.confidence(ev, est_pts, est_nrm, spread)
+        conf, log_d, _ = judge.confidence(ev, est_pts, est_nrm, spread)
         yield FrameResult(
             index=int(frame.index), time=float(frame.time), X=X.copy(), X_std=state.X_std.copy(),
             contour=contour, centroid=centroid, bbox=bbox, n_found=n_found, n_normals=M,
@@ -439,13 +441,14 @@ def track_condensation(
         X_std = np.sqrt(np.maximum(w @ (dev * dev), 0.0))
         contour, centroid, bbox = contour_summary(space, X)
         pts, nrm = space.points_normals(X, sampler)
-        loglik_mean = float(loglik(X[None])[0])
         spread = float(np.sqrt(X_std[0] ** 2 + X_std[1] ** 2)) / judge.app.size
         # the evidence the posterior puts on the object: the weighted mean of the samples'
         # scores per normal (the discriminant only; the others are not in its units)
         held = w > 0
-        post = float(w[held] @ ll[held]) / M if settings.likelihood == "discriminant" else None
-        conf, log_d = judge.confidence(ev, pts, nrm, spread, posterior_score=post)
+        discriminant = settings.likelihood == "discriminant"
+        post = float(w[held] @ ll[held]) / M if discriminant else None
+        conf, log_d, score_mean = judge.confidence(ev, pts, nrm, spread, posterior_score=post)
+        loglik_mean = score_mean if discriminant else float(loglik(X[None])[0])
         lost_prev = conf < measurement.lost_below
         lost_run = lost_run + 1 if lost_prev else 0
         if np.isfinite(centroid).all():

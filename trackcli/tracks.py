@@ -159,11 +159,8 @@ class TrackWriter:
         self._ctx.__exit__(et, ev, tb)
 
 
-def read_track(path: str | Path, names: Sequence[str] | None = None) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """Read ``(frames (T,), X (T, Nx), names)`` from a track CSV.
-
-    If ``names`` is given the file must have exactly those shape components.
-    """
+def _read_table(path: str | Path) -> tuple[Path, list[list[str]]]:
+    """The rows of a track CSV, header first; one-line errors for a missing, unreadable or foreign file."""
     p = Path(path)
     if not p.is_file():
         raise InputError(f"{p}: no such track file")
@@ -174,6 +171,15 @@ def read_track(path: str | Path, names: Sequence[str] | None = None) -> tuple[np
         raise InputError(f"{p}: cannot read ({exc})") from None
     if not rows or "frame" not in rows[0]:
         raise InputError(f"{p}: not a trackcli track CSV (no 'frame' column in the header)")
+    return p, rows
+
+
+def read_track(path: str | Path, names: Sequence[str] | None = None) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Read ``(frames (T,), X (T, Nx), names)`` from a track CSV.
+
+    If ``names`` is given the file must have exactly those shape components.
+    """
+    p, rows = _read_table(path)
     head = rows[0]
     x_cols = [i for i, c in enumerate(head) if c.startswith("X_")]
     found = [head[i][2:] for i in x_cols]
@@ -212,17 +218,8 @@ def read_outlines(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]
         The file is missing or unreadable, has no outline columns (written with
         ``output.outline_points: 0`` or by an older trackcli), or a cell is not a number.
     """
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"{p}: no such track file")
-    try:
-        with open(p, newline="", encoding="utf-8") as fh:
-            rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{p}: cannot read ({exc})") from None
-    head = rows[0] if rows else []
-    if "frame" not in head:
-        raise InputError(f"{p}: not a trackcli track CSV (no 'frame' column in the header)")
+    p, rows = _read_table(path)
+    head = rows[0]
     col = {name: i for i, name in enumerate(head)}
     n = 0
     while f"outline_x{n}" in col and f"outline_y{n}" in col:
@@ -262,8 +259,8 @@ def read_track_uncertainty(path: str | Path, names: Sequence[str]) -> tuple[np.n
     """
     p = Path(path)
     read_track(p, names)  # the same checks of file, header and rows
-    with open(p, newline="", encoding="utf-8") as fh:
-        rows = [r for r in csv.reader(fh) if r]
+    _, rows = _read_table(p)
+    rows = [r for r in rows if r]
     head = rows[0]
     missing = [f"std_{n}" for n in names if f"std_{n}" not in head]
     if missing:
