@@ -35,7 +35,8 @@ from types import SimpleNamespace  # noqa: E402
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from trackcli import condensation, measure  # noqa: E402
+from trackcli.trackers import condensation  # noqa: E402
+from trackcli.observe import measure  # noqa: E402
 
 WIDTH, HEIGHT = 640, 480
 TAU = 0.04
@@ -106,7 +107,8 @@ def curves(model, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def trackcli_curve_model(centre: tuple[float, float], radii: tuple[float, float], n_points: int):
     """The same template evaluated by trackcli's own spline and shape-space modules."""
-    from trackcli import shape_space, spline
+    from trackcli.shapes import shape_space
+    from trackcli.shapes import spline
 
     basis = spline.SplineBasis(N_CONTROL)
     ang = 2 * np.pi * (np.arange(N_CONTROL) + 0.5) / N_CONTROL

@@ -37,7 +37,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from trackcli.evaluate import load_truth  # noqa: E402
+from trackcli.run.evaluate import load_truth  # noqa: E402
 
 
 def _cli(*args: str) -> tuple[float, subprocess.CompletedProcess]:

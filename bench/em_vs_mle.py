@@ -5,8 +5,8 @@ oscillator of AC §9.6: frequency ``f``, damping ``β``, steady-state RMS ``ρ``
 Each trial draws training sequences from it (stationary start), adds independent Gaussian
 noise of standard deviation ``σ`` to every shape component, and learns:
 
-- **MLE** (AC Fig 11.6, ``trackcli.learning.fit_ar2``) from the noisy shapes as if exact;
-- **EM** (``trackcli.em.fit_ar2_em``) from the same shapes with their noise ``σ``.
+- **MLE** (AC Fig 11.6, ``trackcli.dynamics.learning.fit_ar2``) from the noisy shapes as if exact;
+- **EM** (``trackcli.dynamics.em.fit_ar2_em``) from the same shapes with their noise ``σ``.
 
 Printed per trial: frequency and damping of the learned modes (the two nearest the truth
 first), the driving-noise gain ``B0`` (mean of its diagonal) and, for EM, its iterations.
@@ -24,9 +24,9 @@ import time
 
 import numpy as np
 
-from trackcli.dynamics import AR2, oscillator_coefficients
-from trackcli.em import InformationSequence, fit_ar2_em
-from trackcli.learning import fit_ar2
+from trackcli.dynamics.ar2 import AR2, oscillator_coefficients
+from trackcli.dynamics.em import InformationSequence, fit_ar2_em
+from trackcli.dynamics.learning import fit_ar2
 
 TAU = 0.04
 

@@ -5,7 +5,7 @@ For every clip of the dev set this script does what a new user does::
     trackcli draw CLIP --box X,Y,W,H -o T.yaml          # the frame-0 box of the ground truth
     trackcli track --template T.yaml CLIP -o OUT --json  # default settings, CONDENSATION
 
-and scores the track CSV against the ground truth with :mod:`trackcli.evaluate`: precision at
+and scores the track CSV against the ground truth with :mod:`trackcli.run.evaluate`: precision at
 20 px (OTB convention: the estimate's box centre within 20 px of the truth's; centroids for the
 synthetic clips, whose truth has them), precision at 10 px, success AUC (mean over IoU
 thresholds 0, 0.05, ..., 1 of the fraction of frames with IoU above the threshold) and the
@@ -53,7 +53,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from trackcli.evaluate import load_track, load_truth, score_frames, summarise  # noqa: E402
+from trackcli.run.evaluate import load_track, load_truth, score_frames, summarise  # noqa: E402
 
 DEFAULT_FOOTAGE = REPO.parent / "shared" / "footage"
 DEFAULT_CACHE = REPO / "bench" / ".cache"
@@ -189,7 +189,7 @@ def _peer_factory(name: str):
 def run_peer(name: str, clip: Clip, work: Path) -> dict | None:
     import cv2
 
-    from trackcli.video import open_video
+    from trackcli.io.video import open_video
 
     factory = _peer_factory(name)
     if factory is None:

@@ -1,4 +1,4 @@
-"""Memory and speed of streaming a long clip through ``trackcli.video.open_video``.
+"""Memory and speed of streaming a long clip through ``trackcli.io.video.open_video``.
 
 Writes a synthetic clip (default 10,000 frames of 320x240, MJPG in an AVI) to a temporary
 folder, streams it, and prints the peak resident memory (``getrusage`` maxrss and VmRSS
@@ -22,7 +22,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from trackcli.video import open_video
+from trackcli.io.video import open_video
 
 TARGET_MB = 300.0
 

@@ -67,8 +67,8 @@ def check_placed(learned, placed) -> None:
 
 @pytest.fixture(autouse=True)
 def _every_placed_model_is_checked(monkeypatch):
-    """Route every ``trackcli.model.place_dynamics`` call of a test through :func:`check_placed`."""
-    from trackcli import model
+    """Route every ``trackcli.dynamics.model.place_dynamics`` call of a test through :func:`check_placed`."""
+    from trackcli.dynamics import model
 
     original = model.place_dynamics
 

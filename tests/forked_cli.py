@@ -103,11 +103,11 @@ def main() -> None:
     import cv2  # noqa: F401
     import yaml  # noqa: F401
 
-    import trackcli.batch  # noqa: F401
+    import trackcli.run.batch  # noqa: F401
     import trackcli.cli  # noqa: F401
-    import trackcli.draw  # noqa: F401
-    import trackcli.evaluate  # noqa: F401
-    import trackcli.train  # noqa: F401
+    import trackcli.shapes.draw  # noqa: F401
+    import trackcli.run.evaluate  # noqa: F401
+    import trackcli.run.train  # noqa: F401
 
     results = []
     for case in cases:

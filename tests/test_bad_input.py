@@ -63,8 +63,8 @@ def write_clip(path: Path, frames: int = FRAMES) -> Path:
 
 
 def write_template(path: Path, clip: str, size=CLIP_SIZE, points=None) -> Path:
-    from trackcli.draw import ellipse_outline, fit_template
-    from trackcli.template import save_template
+    from trackcli.shapes.draw import ellipse_outline, fit_template
+    from trackcli.shapes.template import save_template
 
     outline = ellipse_outline(70.0, 60.0, 28.0, 36.0) if points is None else np.asarray(points, float)
     save_template(path, fit_template(outline, 12, clip=clip, frame=0, frame_size=size, source="test"))
@@ -478,7 +478,7 @@ def test_an_existing_output_is_replaced(tmp_path, drawn):
 
 def test_file_system_errors_while_writing_name_the_file(tmp_path):
     from trackcli.errors import InputError
-    from trackcli.outputs import write_text
+    from trackcli.io.outputs import write_text
 
     with pytest.raises(InputError, match=r"x{300}\.yaml: cannot write \(File name too long\)"):
         write_text(tmp_path / LONG_NAME, "a: 1\n")
@@ -492,7 +492,7 @@ def test_file_system_errors_while_writing_name_the_file(tmp_path):
 
 def test_yaml_that_expands_or_nests_too_much_is_refused_before_it_is_built():
     from trackcli.errors import ConfigError
-    from trackcli.outputs import MAX_YAML_NODES, load_yaml_text
+    from trackcli.io.outputs import MAX_YAML_NODES, load_yaml_text
 
     with pytest.raises(ConfigError, match=f"too large once its aliases are expanded \\(more than {MAX_YAML_NODES}"):
         load_yaml_text(BILLION_LAUGHS, "cfg.yaml", ConfigError)
@@ -508,7 +508,7 @@ def test_yaml_that_expands_or_nests_too_much_is_refused_before_it_is_built():
 
 
 def test_a_config_over_the_size_limit_is_refused_without_reading_it(tmp_path):
-    from trackcli.outputs import MAX_YAML_BYTES
+    from trackcli.io.outputs import MAX_YAML_BYTES
 
     big = tmp_path / "big.yaml"
     with big.open("w") as fh:
@@ -559,7 +559,7 @@ def test_an_interrupt_just_after_rerun_opened_the_file_leaves_no_part(tmp_path, 
     """The leak: a worker interrupted inside Recording.__enter__, after Rerun created the file."""
     import rerun as rr
 
-    from trackcli.recording import Recording
+    from trackcli.io.recording import Recording
 
     def interrupted(self, name):
         raise KeyboardInterrupt
@@ -572,8 +572,8 @@ def test_an_interrupt_just_after_rerun_opened_the_file_leaves_no_part(tmp_path, 
 
 
 def test_an_interrupted_job_stops_at_a_frame_and_leaves_nothing(tmp_path, drawn):
-    from trackcli import batch
-    from trackcli.config import load_settings
+    from trackcli.run import batch
+    from trackcli.io.config import load_settings
 
     clip, template = drawn
     job = batch.Job(name="clip", clip=str(clip), settings=load_settings(None, {"condensation.particles": 30}),
@@ -596,7 +596,7 @@ def test_an_interrupted_job_stops_at_a_frame_and_leaves_nothing(tmp_path, drawn)
 
 
 def test_a_worker_interrupted_before_its_job_refuses_it(monkeypatch):
-    from trackcli import batch
+    from trackcli.run import batch
 
     monkeypatch.setattr(batch, "_interrupted", True)
     with pytest.raises(KeyboardInterrupt):
@@ -604,8 +604,8 @@ def test_a_worker_interrupted_before_its_job_refuses_it(monkeypatch):
 
 
 def test_the_parent_removes_what_unfinished_jobs_left(tmp_path):
-    from trackcli import batch
-    from trackcli.config import Settings
+    from trackcli.run import batch
+    from trackcli.io.config import Settings
 
     jobs = [batch.Job(name=n, clip="c.avi", settings=Settings(), template="t.yaml") for n in ("a", "b")]
     for job, files in zip(jobs, ([".a.condensation.rrd.part", ".a.condensation.csv.part", "a.condensation.csv"],

@@ -1,4 +1,4 @@
-"""Tests for batch runs (`trackcli batch`, trackcli.batch) and for shell-script behaviour of the CLI.
+"""Tests for batch runs (`trackcli batch`, trackcli.run.batch) and for shell-script behaviour of the CLI.
 
 The batches run short selections of the sample clips (a dozen frames, 60 particles) so that
 local processes, a Dask cluster, failures, re-runs and interruptions can all be exercised
@@ -23,10 +23,10 @@ import yaml
 from click.testing import CliRunner
 
 from conftest import REPO, SAMPLE_DATA, sample_clip
-from trackcli import batch
+from trackcli.run import batch
 from trackcli.cli import cli
 from trackcli.errors import ConfigError, InputError
-from trackcli.evaluate import evaluate, load_truth
+from trackcli.run.evaluate import evaluate, load_truth
 
 FRAMES = 12
 PARTICLES = 60
@@ -207,7 +207,7 @@ def test_a_broken_clip_fails_alone(inputs, tmp_path):
     assert_complete(out / "test", "test", "condensation")
     assert_no_partial_output(out / "corrupt")
     # a clip's JSON object starts with the same keys as in `track --json`, failed or not
-    from trackcli.runs import CLIP_JSON_KEYS
+    from trackcli.run.clips import CLIP_JSON_KEYS
 
     for c in lines[:-1]:
         assert c["kind"] == "clip" and list(c)[: len(CLIP_JSON_KEYS)] == list(CLIP_JSON_KEYS)
@@ -256,7 +256,7 @@ def test_rerun_skips_complete_clips_and_force_runs_them_again(inputs, tmp_path):
 
 
 def test_an_interrupted_job_leaves_no_partial_output(inputs, tmp_path, monkeypatch):
-    from trackcli import tracking
+    from trackcli.trackers import tracking
 
     real = tracking.track_condensation
     seen = []

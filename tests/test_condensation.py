@@ -11,7 +11,7 @@ import scipy.linalg
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from trackcli import condensation as cond
+from trackcli.trackers import condensation as cond
 from trackcli.errors import ConfigError, DataError
 
 # A stable, oscillatory 1-D AR(2) model: poles 0.8 +- 0.245i, |pole| = 0.837.

@@ -1,4 +1,4 @@
-"""Tests for trackcli.draw: parsing user input, outlines, GrabCut boxes, masks, template fitting."""
+"""Tests for trackcli.shapes.draw: parsing user input, outlines, GrabCut boxes, masks, template fitting."""
 
 from __future__ import annotations
 
@@ -10,11 +10,11 @@ import pytest
 from click.testing import CliRunner
 
 from conftest import CLIP_ELLIPSE, CLIP_SIZE, SAMPLE_DATA, sample_clip
-from trackcli import draw
+from trackcli.shapes import draw
 from trackcli.cli import cli
 from trackcli.errors import ConfigError, DataError, InputError
-from trackcli.spline import dense_polygon
-from trackcli.template import load_template
+from trackcli.shapes.spline import dense_polygon
+from trackcli.shapes.template import load_template
 
 
 def template_mask(template, frame_size) -> np.ndarray:
@@ -256,7 +256,7 @@ def test_box_segmentation_is_reproducible():
 
 def test_box_without_an_object_falls_back_to_the_inscribed_ellipse(caplog):
     img = np.full((120, 160, 3), 128, np.uint8)
-    with caplog.at_level(logging.WARNING, logger="trackcli.draw"):
+    with caplog.at_level(logging.WARNING, logger="trackcli.shapes.draw"):
         mask = draw.segment_box(img, (40.0, 30.0, 60.0, 50.0))
     assert "no clear object" in caplog.text
     inscribed = draw.polygon_mask(draw.ellipse_outline(70.0, 55.0, 30.0, 25.0), (160, 120))

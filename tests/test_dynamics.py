@@ -1,4 +1,4 @@
-"""Tests of trackcli.dynamics: AR(2) state form, steady state, sampling, modes, defaults."""
+"""Tests of trackcli.dynamics.ar2: AR(2) state form, steady state, sampling, modes, defaults."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from trackcli.dynamics import (
+from trackcli.dynamics.ar2 import (
     AR2,
     SubspaceModel,
     h_orthogonal_projector,

@@ -1,4 +1,4 @@
-"""EM learning of AR(2) dynamics from noisy measurements (trackcli.em).
+"""EM learning of AR(2) dynamics from noisy measurements (trackcli.dynamics.em).
 
 Evidence: on a known AR(2) model with a coherent oscillation observed with noise, EM
 recovers frequency, damping and B0 closer to the truth than maximum likelihood on the same
@@ -10,11 +10,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from trackcli.dynamics import AR2, oscillator_coefficients
-from trackcli.em import InformationSequence, expected_statistics, fit_ar2_em
+from trackcli.dynamics.ar2 import AR2, oscillator_coefficients
+from trackcli.dynamics.em import InformationSequence, expected_statistics, fit_ar2_em
 from trackcli.errors import DataError
-from trackcli.learning import AR2Statistics, fit_ar2
-from trackcli.smoothing import filter_information, smooth_filtered
+from trackcli.dynamics.learning import AR2Statistics, fit_ar2
+from trackcli.trackers.smoothing import filter_information, smooth_filtered
 
 TAU = 0.04
 F_TRUE, BETA_TRUE, RHO_TRUE = 1.0, 0.5, 10.0

@@ -1,4 +1,4 @@
-"""Tests for trackcli.evaluate: hand-computed metrics, file parsing and error messages."""
+"""Tests for trackcli.run.evaluate: hand-computed metrics, file parsing and error messages."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from trackcli.errors import ConfigError, DataError, InputError
-from trackcli.evaluate import (
+from trackcli.run.evaluate import (
     SUCCESS_THRESHOLDS,
     GroundTruth,
     Track,

@@ -1,4 +1,4 @@
-"""Tests of trackcli.learning: maximum-likelihood AR(2) from pooled sequences (AC Fig 11.6)."""
+"""Tests of trackcli.dynamics.learning: maximum-likelihood AR(2) from pooled sequences (AC Fig 11.6)."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from trackcli.dynamics import AR2, oscillator_coefficients
+from trackcli.dynamics.ar2 import AR2, oscillator_coefficients
 from trackcli.errors import DataError
-from trackcli.learning import AR2Statistics, fit_ar2, stabilise
+from trackcli.dynamics.learning import AR2Statistics, fit_ar2, stabilise
 
 TAU = 0.04
 

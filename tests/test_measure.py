@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from trackcli import measure
+from trackcli.observe import measure
 from trackcli.errors import ConfigError, DataError
 
 BRIGHT, DARK = 200.0, 40.0

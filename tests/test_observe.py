@@ -1,4 +1,4 @@
-"""The default observation model (trackcli.observe): discriminant, colour, confidence, proposals."""
+"""The default observation model (trackcli.observe.discriminant): discriminant, colour, confidence, proposals."""
 
 from __future__ import annotations
 
@@ -8,11 +8,12 @@ import cv2
 import numpy as np
 import pytest
 
-from trackcli import measure, observe
-from trackcli.config import CondensationSettings, DynamicsSettings, MeasurementSettings, SubspaceDynamics
-from trackcli.shape_space import similarity
-from trackcli.spline import SplineBasis
-from trackcli.tracking import Presence, contour_summary, handset_dynamics, measurement_sampler, object_size
+from trackcli.observe import measure
+from trackcli.observe import discriminant as observe
+from trackcli.io.config import CondensationSettings, DynamicsSettings, MeasurementSettings, SubspaceDynamics
+from trackcli.shapes.shape_space import similarity
+from trackcli.shapes.spline import SplineBasis
+from trackcli.trackers.tracking import Presence, contour_summary, handset_dynamics, measurement_sampler, object_size
 
 W, H = 320, 240
 M = 24
@@ -201,7 +202,7 @@ def test_pixel_units_keep_the_books_settings():
 
 
 def test_damped_velocity_translation_has_a_free_position():
-    from trackcli.dynamics import oscillator_coefficients
+    from trackcli.dynamics.ar2 import oscillator_coefficients
 
     a1, a2, b0 = oscillator_coefficients(0.0, 4.0, None, 0.04, gamma0=5.0)
     assert a1 + a2 == pytest.approx(1.0)  # an eigenvalue at 1: no pull back to a mean position

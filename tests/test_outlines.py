@@ -13,9 +13,9 @@ from click.testing import CliRunner
 from conftest import CLIP_FRAMES, SAMPLE_DATA, sample_clip
 from trackcli.cli import cli
 from trackcli.errors import InputError
-from trackcli.evaluate import GroundTruth, Track, coverage_notes, load_track, load_truth, polygon_iou, score_frames
+from trackcli.run.evaluate import GroundTruth, Track, coverage_notes, load_track, load_truth, polygon_iou, score_frames
 from trackcli.sample_data import load_outline, load_truth as load_sample_truth, polygon_centroid, true_outline
-from trackcli.tracks import outline_header, read_outlines
+from trackcli.io.tracks import outline_header, read_outlines
 
 
 def run(args, code: int):
@@ -226,7 +226,7 @@ def test_eval_several_tracks_and_plot(tmp_path):
 
 
 def test_plot_curves_are_drawn_where_the_scores_say():
-    from trackcli.plots import curves, draw_plots
+    from trackcli.run.plots import curves, draw_plots
 
     f, b = _boxes(50)
     truth = GroundTruth(f, b[:, :2] + 10, b, np.ones(50, bool))

@@ -21,15 +21,15 @@ import pytest
 from click.testing import CliRunner
 
 from conftest import check_placed
-from trackcli import model as model_mod
+from trackcli.dynamics import model as model_mod
 from trackcli.cli import cli
-from trackcli.config import Settings
-from trackcli.dynamics import AR2
-from trackcli.learning import stabilise
-from trackcli.model import Model, place_space, placement_scale, save_model, scale_direction
-from trackcli.shape_space import similarity, translation
-from trackcli.spline import curve_area_centroid
-from trackcli.template import Template, save_template
+from trackcli.io.config import Settings
+from trackcli.dynamics.ar2 import AR2
+from trackcli.dynamics.learning import stabilise
+from trackcli.dynamics.model import Model, place_space, placement_scale, save_model, scale_direction
+from trackcli.shapes.shape_space import similarity, translation
+from trackcli.shapes.spline import curve_area_centroid
+from trackcli.shapes.template import Template, save_template
 
 TAU = 0.04
 
@@ -117,7 +117,7 @@ def test_cutting_the_coupling_of_a_model_held_up_by_it_is_restabilised_and_said(
     kept, rep = _place(dyn, space, np.zeros(4))
     assert rep.radius == pytest.approx(dyn.spectral_radius()) and not rep.restabilised
     for coupling in ("none", "velocity"):
-        with caplog.at_level(logging.WARNING, logger="trackcli.model"):
+        with caplog.at_level(logging.WARNING, logger="trackcli.dynamics.model"):
             caplog.clear()
             placed, rep = _place(dyn, space, np.zeros(4), coupling=coupling, max_spectral_radius=0.99)
         assert rep.restabilised and rep.limit == 0.99

@@ -1,4 +1,4 @@
-"""Tests for trackcli.recording: write .rrd files, read them back, verify with the rerun CLI."""
+"""Tests for trackcli.io.recording: write .rrd files, read them back, verify with the rerun CLI."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from hypothesis.extra import numpy as hnp
 
 import rrd_utils as ru
 from trackcli.errors import ConfigError, DataError, TrackcliError
-from trackcli.recording import (
+from trackcli.io.recording import (
     BLUEPRINTS,
     Recording,
     histogram_image,
@@ -362,7 +362,7 @@ def test_use_outside_with_block_is_an_error(tmp_path):
 
 
 def test_import_does_not_load_rerun_or_cv2():
-    code = "import sys, trackcli.recording; print('rerun' in sys.modules, 'cv2' in sys.modules)"
+    code = "import sys, trackcli.io.recording; print('rerun' in sys.modules, 'cv2' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "False"]
 

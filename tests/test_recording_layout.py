@@ -16,8 +16,8 @@ import rrd_utils as ru
 from conftest import sample_clip
 from trackcli.cli import cli
 from trackcli.errors import ConfigError, InputError, TrackcliError
-from trackcli.recording import Recording, frame_storage
-from trackcli.viewer import check_recording, has_display, viewer_command
+from trackcli.io.recording import Recording, frame_storage
+from trackcli.io.viewer import check_recording, has_display, viewer_command
 
 
 def run(args, code: int):
@@ -185,7 +185,7 @@ def test_view_explains_what_is_missing(tmp_path, monkeypatch):
     with Recording(rrd) as rec:
         rec.set_frame(0, 0.0)
         rec.log_scalar("series/a", 1.0)
-    import trackcli.viewer as v
+    import trackcli.io.viewer as v
 
     with monkeypatch.context() as m:
         m.setattr(v, "find_viewer", lambda: None)
@@ -209,7 +209,7 @@ def test_view_runs_the_viewer_on_the_file(tmp_path, monkeypatch):
     fake = tmp_path / "rerun"
     fake.write_text(f"#!{sys.executable}\nimport sys\nopen({str(seen)!r}, 'w').write(' '.join(sys.argv[1:]))\n")
     fake.chmod(0o755)
-    import trackcli.viewer as v
+    import trackcli.io.viewer as v
 
     monkeypatch.setattr(v, "find_viewer", lambda: str(fake))
     monkeypatch.setenv("DISPLAY", ":99")

@@ -9,8 +9,8 @@ from click.testing import CliRunner
 
 from conftest import CLIP_FRAMES, CLIP_SIZE
 from trackcli.cli import cli
-from trackcli.render import ESTIMATE_BGR, default_output, render, sheet_indices
-from trackcli.tracks import read_outlines
+from trackcli.run.render import ESTIMATE_BGR, default_output, render, sheet_indices
+from trackcli.io.tracks import read_outlines
 
 
 def run(args, code: int):

@@ -1,4 +1,4 @@
-"""Tests for trackcli.shape_space: constructive and learned shape-spaces."""
+"""Tests for trackcli.shapes.shape_space: constructive and learned shape-spaces."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from scipy.linalg import subspace_angles
 
 from trackcli.errors import ConfigError, DataError, ModelError
-from trackcli.shape_space import (
+from trackcli.shapes.shape_space import (
     ShapeSpace,
     affine,
     explained_fraction,
@@ -20,7 +20,7 @@ from trackcli.shape_space import (
     similarity,
     translation,
 )
-from trackcli.spline import CurveSampler, SplineBasis, curve_area_centroid, curve_centre
+from trackcli.shapes.spline import CurveSampler, SplineBasis, curve_area_centroid, curve_centre
 
 FAST = settings(max_examples=40, deadline=None)
 NQ = 10

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from statsmodels.tsa.statespace.mlemodel import MLEModel
 
-from trackcli import kalman
-from trackcli.dynamics import AR2
-from trackcli.smoothing import filter_information, rts_smooth, smooth_filtered
+from trackcli.trackers import kalman
+from trackcli.dynamics.ar2 import AR2
+from trackcli.trackers.smoothing import filter_information, rts_smooth, smooth_filtered
 
 
 def _oscillator(nx: int = 2) -> AR2:
@@ -174,8 +174,8 @@ def test_single_frame_is_its_own_smoothing():
 
 def test_particle_smoother_approaches_the_rts_smoother_on_a_linear_gaussian_model():
     """CONDENSATION with a Gaussian likelihood, then the backward pass, against Kalman + RTS."""
-    from trackcli import condensation as cond
-    from trackcli.smoothing import particle_smoothing_weights
+    from trackcli.trackers import condensation as cond
+    from trackcli.trackers.smoothing import particle_smoothing_weights
 
     model = _oscillator(2)
     T, N = 50, 1500
@@ -229,7 +229,7 @@ def test_particle_smoother_approaches_the_rts_smoother_on_a_linear_gaussian_mode
 
 
 def test_particle_smoothing_needs_consecutive_sample_sets():
-    from trackcli.smoothing import particle_smoothing_weights
+    from trackcli.trackers.smoothing import particle_smoothing_weights
 
     model = _oscillator(2)
     cur = [np.zeros((3, 2)), np.ones((3, 2))]

@@ -1,4 +1,4 @@
-"""Tests for trackcli.spline: basis, evaluation, normals, metric, fitting."""
+"""Tests for trackcli.shapes.spline: basis, evaluation, normals, metric, fitting."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from trackcli.errors import ConfigError, DataError
-from trackcli.spline import (
+from trackcli.shapes.spline import (
     CurveSampler,
     SplineBasis,
     curve_area_centroid,

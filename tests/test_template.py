@@ -1,4 +1,4 @@
-"""Tests for trackcli.template: the YAML round trip and rejection of malformed template files."""
+"""Tests for trackcli.shapes.template: the YAML round trip and rejection of malformed template files."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from trackcli.errors import InputError, TemplateError
-from trackcli.template import FORMAT, KIND, Template, load_template, save_template
+from trackcli.shapes.template import FORMAT, KIND, Template, load_template, save_template
 
 
 def square_template(**kw) -> Template:

@@ -1,7 +1,7 @@
 """``track --model`` measures the outline as the model was learned to.
 
 The model file stores the settings it was learned with; its ``measurement`` section
-(:data:`trackcli.model.MODEL_SECTIONS`) is used for tracking unless the user sets a key of
+(:data:`trackcli.dynamics.model.MODEL_SECTIONS`) is used for tracking unless the user sets a key of
 it, in a configuration file (``-c``) or by an option.  ``-v`` says where each section came
 from.  The effective configuration written beside the track shows what was used.
 """
@@ -17,11 +17,11 @@ from click.testing import CliRunner
 
 from conftest import CLIP_ELLIPSE, CLIP_SIZE
 from trackcli.cli import cli
-from trackcli.config import load_settings, replace
-from trackcli.dynamics import AR2
-from trackcli.model import Model, save_model
-from trackcli.shape_space import similarity
-from trackcli.template import Template, save_template
+from trackcli.io.config import load_settings, replace
+from trackcli.dynamics.ar2 import AR2
+from trackcli.dynamics.model import Model, save_model
+from trackcli.shapes.shape_space import similarity
+from trackcli.shapes.template import Template, save_template
 
 
 @pytest.fixture
@@ -50,14 +50,14 @@ def _track(files, clip, *extra):
 
 
 def test_without_a_config_the_models_measurement_settings_are_used(files, ellipse_clip, caplog):
-    with caplog.at_level(logging.INFO, logger="trackcli.runs"):
+    with caplog.at_level(logging.INFO, logger="trackcli.run.clips"):
         used = _track(files, ellipse_clip)
     assert used["polarity"] == "dark_to_light" and used["n_normals"] == 30
     assert "measurement settings: from model" in caplog.text
 
 
 def test_a_config_that_sets_the_polarity_wins_for_that_key(files, ellipse_clip, caplog):
-    with caplog.at_level(logging.INFO, logger="trackcli.runs"):
+    with caplog.at_level(logging.INFO, logger="trackcli.run.clips"):
         used = _track(files, ellipse_clip, "-c", files / "polarity.yaml")
     assert used["polarity"] == "light_to_dark"
     assert used["n_normals"] == 30  # not set by the config: still the model's

@@ -25,20 +25,20 @@ import pytest
 from click.testing import CliRunner
 
 from conftest import CONFIGS, SAMPLE_DATA, sample_clip
-from trackcli import measure
+from trackcli.observe import measure
 from trackcli.cli import cli
-from trackcli.config import load_settings
-from trackcli.dynamics import AR2
-from trackcli.evaluate import evaluate, load_track, score_frames
-from trackcli.evaluate import load_truth as load_eval_truth
-from trackcli.model import load_model, place_dynamics, place_space, translation_split
-from trackcli.runs import tracking_setup
+from trackcli.io.config import load_settings
+from trackcli.dynamics.ar2 import AR2
+from trackcli.run.evaluate import evaluate, load_track, score_frames
+from trackcli.run.evaluate import load_truth as load_eval_truth
+from trackcli.dynamics.model import load_model, place_dynamics, place_space, translation_split
+from trackcli.run.clips import tracking_setup
 from trackcli.sample_data import load_truth
-from trackcli.shape_space import similarity
-from trackcli.spline import SplineBasis
-from trackcli.template import load_template
-from trackcli.tracking import track_condensation
-from trackcli.video import open_video
+from trackcli.shapes.shape_space import similarity
+from trackcli.shapes.spline import SplineBasis
+from trackcli.shapes.template import load_template
+from trackcli.trackers.tracking import track_condensation
+from trackcli.io.video import open_video
 
 CLUTTER = CONFIGS / "sample-clutter.yaml"
 THREE_HEADS = CONFIGS / "three-heads.yaml"

@@ -25,11 +25,11 @@ from click.testing import CliRunner
 import rrd_utils as ru
 from conftest import SAMPLE_DATA, sample_clip
 from trackcli.cli import cli
-from trackcli.config import load_settings
-from trackcli.learning import fit_ar2
-from trackcli.model import load_model
+from trackcli.io.config import load_settings
+from trackcli.dynamics.learning import fit_ar2
+from trackcli.dynamics.model import load_model
 from trackcli.sample_data import load_truth
-from trackcli.tracks import read_track
+from trackcli.io.tracks import read_track
 
 N_FRAMES = 260  # frames in train.mp4
 TAU = 1 / 25  # its frame interval, s

@@ -18,14 +18,14 @@ import pytest
 from click.testing import CliRunner
 
 from trackcli.cli import cli
-from trackcli.config import Settings
-from trackcli.dynamics import AR2
+from trackcli.io.config import Settings
+from trackcli.dynamics.ar2 import AR2
 from trackcli.errors import DataError
-from trackcli.learning import fit_ar2
-from trackcli.model import load_model
-from trackcli.template import Template, save_template
-from trackcli.tracks import header
-from trackcli.train import held_segments, learn_from_sequences
+from trackcli.dynamics.learning import fit_ar2
+from trackcli.dynamics.model import load_model
+from trackcli.shapes.template import Template, save_template
+from trackcli.io.tracks import header
+from trackcli.run.train import held_segments, learn_from_sequences
 
 TAU = 0.04
 TY, SCOS = 1, 2
@@ -90,20 +90,20 @@ def test_couplings_of_the_garbage_frames_do_not_appear():
 def test_dropping_more_than_a_tenth_is_warned_with_counts(caplog):
     rng = np.random.default_rng(9)
     X, lost = _with_garbage(rng)
-    with caplog.at_level(logging.WARNING, logger="trackcli.train"):
+    with caplog.at_level(logging.WARNING, logger="trackcli.run.train"):
         learn_from_sequences([X], TAU, Settings(), lost=[lost], labels=["walk.mp4"])
     assert "learning from 323 of 400 training frames: 77 dropped" in caplog.text
     assert "walk.mp4: 77 lost, 0 in pieces shorter than 3 frames, 323 used in 4 segment(s)" in caplog.text
     caplog.clear()
     short = lost.copy()
     short[102] = False  # one held frame inside a lost stretch is no segment
-    with caplog.at_level(logging.WARNING, logger="trackcli.train"):
+    with caplog.at_level(logging.WARNING, logger="trackcli.run.train"):
         learn_from_sequences([X], TAU, Settings(), lost=[short], labels=["walk.mp4"])
     assert "walk.mp4: 76 lost, 1 in pieces shorter than 3 frames, 323 used in 4 segment(s)" in caplog.text
     caplog.clear()
     few = np.zeros(400, dtype=bool)
     few[100:120] = True  # 5 %: no warning
-    with caplog.at_level(logging.WARNING, logger="trackcli.train"):
+    with caplog.at_level(logging.WARNING, logger="trackcli.run.train"):
         learn_from_sequences([X], TAU, Settings(), lost=[few])
     assert caplog.text == ""
 
@@ -144,7 +144,7 @@ def test_learn_from_tracks_drops_lost_rows(tmp_path, caplog):
     X, lost = _with_garbage(rng)
     _write_track(tmp_path / "a.csv", X, lost)
     save_template(tmp_path / "t.yaml", _template())
-    with caplog.at_level(logging.WARNING, logger="trackcli.train"):
+    with caplog.at_level(logging.WARNING, logger="trackcli.run.train"):
         out = CliRunner().invoke(cli, ["learn", "--template", str(tmp_path / "t.yaml"), "--from-tracks",
                                        str(tmp_path / "a.csv"), "-o", str(tmp_path / "m.yaml")])
     assert out.exit_code == 0, out.output

@@ -1,4 +1,4 @@
-"""Tests for trackcli.video: files, image folders, frame selection, random access, errors.
+"""Tests for trackcli.io.video: files, image folders, frame selection, random access, errors.
 
 Clips are generated in temporary folders.  Every frame is a flat grey level that encodes
 its index (``10 + 4 * index``), so the index of a decoded frame can be read back from its
@@ -19,7 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from trackcli.errors import ConfigError, VideoError
-from trackcli.video import DEFAULT_FPS, Frame, Video, open_video
+from trackcli.io.video import DEFAULT_FPS, Frame, Video, open_video
 
 W, H = 64, 48
 N = 30
@@ -114,12 +114,12 @@ def test_folder_is_read_in_natural_order(tmp_path):
 
 
 def test_folder_without_fps_assumes_default_and_warns(clips, caplog):
-    with caplog.at_level(logging.WARNING, logger="trackcli.video"):
+    with caplog.at_level(logging.WARNING, logger="trackcli.io.video"):
         video = open_video(clips["folder"])
     assert video.fps == DEFAULT_FPS == 25.0
     assert any("fps" in r.getMessage() and r.levelno == logging.WARNING for r in caplog.records)
     caplog.clear()
-    with caplog.at_level(logging.WARNING, logger="trackcli.video"):
+    with caplog.at_level(logging.WARNING, logger="trackcli.io.video"):
         open_video(clips["folder"], fps=12.5)
     assert not caplog.records
 
@@ -354,7 +354,7 @@ def test_missing_last_frame_counts_as_end_of_stream(tmp_path, caplog):
     path.write_bytes(data[: movie_chunk_offsets(data)[-1]])  # the last frame is gone
     video = open_video(path)
     assert video.n_total == N
-    with caplog.at_level(logging.INFO, logger="trackcli.video"):
+    with caplog.at_level(logging.INFO, logger="trackcli.io.video"):
         frames = [f.index for f in video]
     assert frames == list(range(N - 1))
     assert any("reports" in r.getMessage() for r in caplog.records)

@@ -1,0 +1,3 @@
+from trackcli.cli.commands import main
+
+main()

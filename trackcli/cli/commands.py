@@ -1,0 +1,933 @@
+"""The ``trackcli`` command line.
+
+Commands are thin: they parse options, resolve inputs and outputs, call the library and
+write results.  Every :class:`~trackcli.errors.TrackcliError` becomes a one-line message on
+stderr and the exit code of its class; progress bars and logs go to stderr, results to
+stdout or files.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+
+import click
+
+from trackcli import __version__
+from trackcli.errors import TrackcliError
+
+log = logging.getLogger("trackcli")
+
+
+class TrackcliGroup(click.Group):
+    """Click group that turns every error into one line on stderr and an exit code.
+
+    - library errors (:class:`~trackcli.errors.TrackcliError`): the code of their class;
+    - an invalid option value (Click's ``BadParameter``): 3, like an invalid setting;
+    - other usage errors (missing or unknown options or arguments, conflicting options): 2;
+    - a file system error nothing else translated: 4, naming the file;
+    - Ctrl-C: 130.
+    """
+
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except TrackcliError as exc:
+            _fail(ctx, str(exc), exc.exit_code)
+        except click.MissingParameter as exc:
+            _fail(ctx, _usage_line(exc), 2)
+        except click.BadParameter as exc:
+            _fail(ctx, _usage_line(exc), 3)
+        except click.UsageError as exc:
+            _fail(ctx, _usage_line(exc), 2)
+        except KeyboardInterrupt:
+            click.echo("Interrupted.", err=True)
+            ctx.exit(130)
+        except OSError as exc:
+            name = f"{exc.filename}: " if exc.filename else ""
+            _fail(ctx, f"{name}{exc.strerror or exc}", 4)
+        except (MemoryError, RecursionError) as exc:
+            _fail(ctx, f"out of {'memory' if isinstance(exc, MemoryError) else 'stack'} "
+                       "(is an input unreasonably large or deeply nested?)", 1)
+
+
+def _fail(ctx: click.Context, message: str, code: int) -> None:
+    lines = str(message).strip().splitlines() or [""]
+    click.echo(f"Error: {lines[0]}", err=True)
+    ctx.exit(code)
+
+
+def _usage_line(exc: click.UsageError) -> str:
+    """Click's message, and where to find help, on one line."""
+    text = " ".join(exc.format_message().split())
+    if exc.ctx is not None and exc.ctx.command is not None and exc.ctx.parent is not None:
+        text += f" (see '{exc.ctx.command_path} --help')"
+    return text
+
+
+@click.group(cls=TrackcliGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="trackcli")
+@click.option("-v", "--verbose", count=True, help="More log output (repeat for debug).")
+@click.option("-q", "--quiet", is_flag=True, help="Only errors on stderr; no progress bars.")
+@click.pass_context
+def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
+    """Follow the outline of an object through video, even in dense clutter.
+
+    \b
+    The pipeline (Blake & Isard):
+      draw    make a B-spline template around the object in one frame
+      learn   track training clips with a Kalman contour tracker and learn AR(2) dynamics
+      track   follow the object in test footage with CONDENSATION (or Kalman)
+      eval    score estimates against ground truth (and plot them)
+      render  draw the estimated outline on the frames: video, PNGs, contact sheet
+      view    open a recording in the Rerun viewer
+      batch   run many clips from a manifest, locally or on a Dask cluster
+
+    Every run writes a Rerun recording (.rrd) and CSV files of the estimates.
+    """
+    level = logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose, 2)]
+    logging.basicConfig(level=level, format="%(levelname)s: %(message)s", stream=sys.stderr)
+    ctx.ensure_object(dict)
+    ctx.obj["quiet"] = quiet
+
+
+# ---------------------------------------------------------------------------------------------
+# config
+
+
+@cli.group("config")
+def config_group() -> None:
+    """Show, explain, list and check configuration files and presets."""
+
+
+@config_group.command("show")
+@click.argument("file", required=False, type=click.Path(dir_okay=False))
+@click.option("--comments", is_flag=True, help="Explain every setting in a comment.")
+def config_show(file: str | None, comments: bool) -> None:
+    """Print the effective configuration: the defaults, overridden by FILE if given.
+
+    The output is itself a valid configuration file:
+    `trackcli config show --comments > my.yaml` starts a new one.
+    """
+    from trackcli.io.config import dump_yaml, load_settings, render_commented
+
+    settings = load_settings(file)
+    click.echo(render_commented(settings) if comments else dump_yaml(settings), nl=False)
+
+
+@config_group.command("list")
+def config_list() -> None:
+    """List the preset configurations that ship with trackcli, with their purpose.
+
+    Use a preset by name from any folder: `trackcli track -c tight ...`.  A file of the
+    same name in the current folder wins over the preset.
+    """
+    from trackcli.io.config import preset_purpose, presets
+
+    found = presets()
+    width = max((len(n) for n in found), default=0)
+    for name, path in found.items():
+        click.echo(f"{name:<{width}}  {preset_purpose(path)}")
+
+
+@config_group.command("check")
+@click.argument("file", type=click.Path(dir_okay=False))
+def config_check(file: str) -> None:
+    """Validate FILE; exit 0 if it is valid, 3 with the reason if not."""
+    from trackcli.io.config import load_settings
+
+    load_settings(file)
+    click.echo(f"{file}: OK")
+
+
+# ---------------------------------------------------------------------------------------------
+# draw
+
+
+@cli.command("draw")
+@click.argument("clip", type=click.Path())
+@click.option("--frame", "frame_index", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Frame of CLIP to draw on.")
+@click.option("--points", help="Ordered outline points 'x1,y1 x2,y2 ...', or a file with one 'x,y' per line.")
+@click.option("--ellipse", help="Ellipse 'cx,cy,a,b[,angle]': centre, semi-axes (px), angle (degrees).")
+@click.option("--box", help="Box 'x,y,w,h' around the object: segmented automatically (GrabCut).")
+@click.option("--mask", type=click.Path(), help="Binary mask image (non-zero = object), same size as the frame.")
+@click.option("--n-ctrl", type=click.IntRange(min=3, max=200), default=12, show_default=True,
+              help="Number of spline control points.")
+@click.option("--degree", type=click.IntRange(min=1, max=5), default=2, show_default=True,
+              help="Spline degree (2 = quadratic).")
+@click.option("--open", "open_curve", is_flag=True, help="Open curve (default closed); only with --points.")
+@click.option("--fps", type=click.FloatRange(min=0, min_open=True), help="Frame rate of an image folder.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Template file to write (.yaml).")
+@click.option("--preview", type=click.Path(dir_okay=False),
+              help="Preview PNG (default: beside the template, same name with .png).")
+@click.option("--rrd", type=click.Path(dir_okay=False), help="Also write a Rerun recording of the template.")
+@click.option("--n-normals", type=click.IntRange(min=3, max=1000), default=24, show_default=True,
+              help="Measurement normals shown in the preview.")
+def draw_cmd(clip, frame_index, points, ellipse, box, mask, n_ctrl, degree, open_curve, fps, output, preview, rrd, n_normals):
+    """Make a template: a B-spline outline of the object in one frame of CLIP.
+
+    Give exactly one of --points, --ellipse, --box or --mask.  Writes the template (YAML),
+    a PNG preview (curve in green, control polygon in blue, measurement normals in yellow)
+    and, with --rrd, a recording.
+
+    \b
+    Examples:
+      trackcli draw sample_data/train.mp4 --box 200,90,90,150 -o head.yaml
+      trackcli draw clip.mp4 --frame 10 --ellipse 320,240,40,55 --n-ctrl 10 -o head.yaml
+    """
+    from pathlib import Path
+
+    import cv2
+
+    from trackcli.shapes import draw
+    from trackcli.io.outputs import atomic_path, output_dir, refuse_overwriting_inputs
+    from trackcli.shapes.template import save_template
+    from trackcli.io.video import open_video
+
+    chosen = [n for n, v in (("--points", points), ("--ellipse", ellipse), ("--box", box), ("--mask", mask)) if v]
+    if len(chosen) != 1:
+        raise click.UsageError("give exactly one of --points, --ellipse, --box, --mask"
+                               + (f" (got {', '.join(chosen)})" if chosen else ""))
+    if open_curve and not points:
+        raise click.UsageError("--open goes with --points (boxes, masks and ellipses give closed outlines)")
+    out = Path(output)
+    png = Path(preview) if preview else out.with_suffix(".png")
+    points_file = points if points and Path(points).is_file() else None
+    refuse_overwriting_inputs({"-o/--output": out, "--preview": png, "--rrd": rrd},
+                              {"CLIP": clip, "--mask": mask, "--points": points_file})
+    with open_video(clip, fps=fps) as video:
+        frame = video.read(frame_index)
+    size = (frame.image.shape[1], frame.image.shape[0])
+    draw.check_frame_size(size, str(clip))
+    if points:
+        outline = draw.parse_points(points)
+        draw.check_outline_in_frame(outline, size, "--points", closed=not open_curve)
+        source = "points"
+    elif ellipse:
+        outline = draw.ellipse_outline(*draw.parse_numbers(ellipse, (4, 5), "--ellipse"))
+        draw.check_outline_in_frame(outline, size, "--ellipse")
+        source = f"ellipse {ellipse}"
+    elif box:
+        b = draw.parse_numbers(box, 4, "--box")
+        outline = draw.mask_outline(draw.segment_box(frame.image, tuple(b)))
+        source = f"box {box} (GrabCut)"
+    else:
+        outline = draw.mask_outline(draw.load_mask(mask, size))
+        source = f"mask {mask}"
+    template = draw.fit_template(outline, n_ctrl, degree=degree, closed=not open_curve, clip=str(clip),
+                                 frame=frame_index, frame_size=size, source=source)
+    vis = draw.render_preview(frame.image, template, n_normals=n_normals)
+    ok, buf = cv2.imencode(".png", vis)
+    written: list[Path] = []
+    with output_dir(out.parent), output_dir(png.parent), output_dir(Path(rrd).parent if rrd else out.parent):
+        try:  # all outputs or none
+            written.append(save_template(out, template))
+            with atomic_path(png) as tmp:
+                tmp.write_bytes(buf.tobytes())
+            written.append(png)
+            if rrd:
+                draw.record_template(rrd, frame.image, template, n_normals=n_normals)
+        except BaseException:
+            for p in written:
+                p.unlink(missing_ok=True)
+            raise
+    log.info("template %s (%d control points) from %s", out, n_ctrl, source)
+    click.echo(f"wrote {out} and {png}" + (f" and {rrd}" if rrd else ""))
+
+
+# ---------------------------------------------------------------------------------------------
+# shared helpers
+
+
+def _settings(config: str | None, overrides: dict):
+    from trackcli.io.config import load_settings
+
+    return load_settings(config, {k: v for k, v in overrides.items() if v is not None})
+
+
+def _explicit_keys(config: str | None, overrides: dict) -> set[str]:
+    """Dotted keys the user set: every key of the configuration file, and the options given."""
+    from trackcli.io.config import read_yaml
+
+    keys = {k for k, v in overrides.items() if v is not None}
+
+    def walk(node, prefix: str) -> None:
+        for k, v in node.items():
+            key = f"{prefix}{k}"
+            if isinstance(v, dict) and v:
+                walk(v, key + ".")
+            else:
+                keys.add(key)
+
+    if config is not None:
+        walk(read_yaml(config), "")
+    return keys
+
+
+def _open(clip: str, settings):
+    from trackcli.io.video import open_video
+
+    v = settings.video
+    return open_video(clip, fps=v.fps, start=v.start, end=v.end, step=v.step)
+
+
+def _progress(ctx: click.Context, length: int, label: str):
+    quiet = bool(ctx.find_root().obj and ctx.find_root().obj.get("quiet"))
+    import os
+
+    hidden = quiet or not sys.stderr.isatty() and os.environ.get("TRACKCLI_PROGRESS") != "1"
+    return click.progressbar(length=length, label=label, file=sys.stderr, show_pos=True, width=30,
+                             hidden=hidden)
+
+
+def _echo_json(obj) -> None:
+    import json
+
+    click.echo(json.dumps(obj, allow_nan=False, default=_json_default))
+
+
+def _json_default(o):
+    import numpy as np
+
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    return str(o)
+
+
+def _clean_json(d, digits: int | None = None):
+    """NaN and infinities become null; with ``digits``, floats keep that many significant digits."""
+    import math
+
+    if isinstance(d, dict):
+        return {k: _clean_json(v, digits) for k, v in d.items()}
+    if isinstance(d, (list, tuple)):
+        return [_clean_json(v, digits) for v in d]
+    if isinstance(d, float) and not math.isfinite(d):
+        return None
+    if isinstance(d, float) and digits is not None:
+        return float(f"{d:.{digits}g}")
+    return d
+
+
+video_options = [
+    click.option("--fps", type=click.FloatRange(min=0, min_open=True), help="Frame rate of image folders (they carry none)."),
+    click.option("--start", type=click.IntRange(min=0), help="First frame (inclusive)."),
+    click.option("--end", type=click.IntRange(min=1), help="Last frame (exclusive)."),
+    click.option("--step", type=click.IntRange(min=1), help="Use every STEP-th frame."),
+]
+
+
+def with_video_options(f):
+    for opt in reversed(video_options):
+        f = opt(f)
+    return f
+
+
+def _video_overrides(fps, start, end, step) -> dict:
+    return {"video.fps": fps, "video.start": start, "video.end": end, "video.step": step}
+
+
+# ---------------------------------------------------------------------------------------------
+# track
+
+
+@cli.command("track")
+@click.argument("clips", nargs=-1, required=True, type=click.Path())
+@click.option("-c", "--config", type=click.Path(dir_okay=False),
+              help="Configuration file (YAML) or preset name (`trackcli config list`).")
+@click.option("--model", type=click.Path(dir_okay=False), help="Model learned by `trackcli learn`.")
+@click.option("--template", type=click.Path(dir_okay=False),
+              help="Template drawn on this clip: the initial placement (with --model) or, alone, "
+                   "the shape to track with hand-set dynamics.")
+@click.option("--tracker", type=click.Choice(["condensation", "kalman"]), default="condensation", show_default=True,
+              help="CONDENSATION (particle filter, robust to clutter) or the Kalman contour tracker.")
+@click.option("--particles", type=click.IntRange(min=1), help="CONDENSATION sample-set size N (condensation.particles).")
+@click.option("--seed", type=click.IntRange(min=0), help="Random seed (same seed, same numbers).")
+@click.option("-o", "--outdir", type=click.Path(file_okay=False), default="trackcli-out", show_default=True,
+              help="Folder for the outputs.")
+@click.option("--smooth", is_flag=True,
+              help="Also write smoothed estimates, CLIP.TRACKER.smoothed.csv, and draw them in the recording: "
+                   "Kalman: Rauch-Tung-Striebel; CONDENSATION: forward-filtering backward-smoothing of the "
+                   "sample weights; both over the whole clip, after tracking it.")
+@click.option("--no-rrd", is_flag=True, help="Do not write Rerun recordings.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON summary line per clip on stdout.")
+@with_video_options
+@click.pass_context
+def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, outdir, smooth, no_rrd, as_json, fps,
+              start, end, step):
+    """Follow the object through each CLIP (video file or image folder).
+
+    \b
+    What is tracked:
+      --model M --template T   the model's shape-space and learned dynamics, placed where T
+                               was drawn on this clip (the usual case)
+      --model M                the model as learned, starting where its template was drawn
+      --template T             T's shape-space with hand-set dynamics (configs/)
+
+    With --model, the measurement settings (edge polarity, normals, smoothing, edge operator,
+    threshold, channel) are the model's own, those it was learned with, except the keys
+    that -c CONFIG sets; everything else comes from the configuration (-v says which).
+
+    \b
+    Per clip, in OUTDIR:
+      CLIP.TRACKER.csv         per-frame estimates (see README: track format)
+      CLIP.TRACKER.rrd         Rerun recording: frames, contour, particles or gates, series
+      CLIP.TRACKER.config.yaml the effective configuration
+      CLIP.TRACKER.smoothed.csv with --smooth: smoothed estimates (same columns)
+    and one summary line on stdout.  With several CLIPS, a clip that fails is reported
+    on stderr and the others still run; the exit code is then 1.
+
+    Every frame gets a confidence (0-1) that the estimate is on the object, from the
+    contour discriminant and the colour learned on the first frame; a frame is lost
+    when it is below 0.5, and the summary line counts those frames.  While lost,
+    CONDENSATION also searches the whole frame for object-coloured regions and picks
+    the object up again when it shows (condensation.reacquire).
+    """
+    from trackcli.dynamics.model import load_model
+    from trackcli.run.clips import clip_json, clip_name, track_clip
+    from trackcli.shapes.template import load_template
+
+    if not model and not template:
+        raise click.UsageError("give --model, --template, or both")
+    overrides = {"condensation.particles": particles, "seed": seed, **_video_overrides(fps, start, end, step)}
+    settings = _settings(config, overrides)
+    explicit = _explicit_keys(config, overrides) if model else None
+    given = [f"{k}={v}" for k, v in overrides.items() if v is not None]
+    log.info("settings: %s%s%s", f"config {config}" if config else "the defaults",
+             f", options {', '.join(given)}" if given else "", f"; dynamics and shape-space from model {model}"
+             if model else "")
+    stems = [clip_name(c) for c in clips]
+    if len(set(stems)) != len(stems):
+        raise click.UsageError("two clips have the same name; run them into different --outdir folders")
+    # files shared by every clip are checked once, before any clip runs
+    if model:
+        load_model(model)
+    if template:
+        load_template(template)
+    failures = 0
+    for clip, stem in zip(clips, stems):
+        try:
+            summary = track_clip(clip, settings=settings, outdir=outdir, model=model, template=template,
+                                 tracker=tracker, name=stem, rrd=not no_rrd, smooth=smooth,
+                                 progress=lambda label, n: _progress(ctx, n, label), explicit=explicit,
+                                 inputs={"-c/--config": config})
+        except TrackcliError as exc:
+            if len(clips) == 1:
+                raise
+            failures += 1
+            message = str(exc)
+            message = message if message.startswith(str(clip)) else f"{clip}: {message}"
+            click.echo(f"Error: {message}", err=True)
+            if as_json:
+                _echo_json(clip_json(stem, clip, tracker, error=message))
+            continue
+        if as_json:
+            _echo_json(_clean_json(clip_json(stem, clip, tracker, summary), digits=6))
+        else:
+            click.echo(summary.line())
+    if failures:
+        click.echo(f"{failures} of {len(clips)} clips failed", err=True)
+    ctx.exit(1 if failures else 0)
+
+
+# ---------------------------------------------------------------------------------------------
+# learn
+
+
+@cli.command("learn")
+@click.argument("clips", nargs=-1, type=click.Path())
+@click.option("-c", "--config", type=click.Path(dir_okay=False),
+              help="Configuration file (YAML) or preset name (`trackcli config list`).")
+@click.option("--template", type=click.Path(dir_okay=False), required=True,
+              help="Template drawn on the (first) training clip.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Model file to write (.yaml).")
+@click.option("--cycles", type=click.IntRange(min=1, max=50), help="Track-learn cycles (learning.cycles).")
+@click.option("--shape-space", "shape_space", help="translation, similarity, affine, or pca:K (residual PCA "
+              "on top of translation, learned from the tracked outlines). Default: the config's shape_space.")
+@click.option("--from-tracks", "from_tracks", multiple=True, type=click.Path(dir_okay=False),
+              help="Learn from track CSVs already made instead of tracking CLIPS (repeatable).")
+@click.option("--tracks-fps", type=click.FloatRange(min=0, min_open=True),
+              help="Frame rate of the clips behind --from-tracks (default: the template clip's, else 25).")
+@click.option("--outdir", type=click.Path(file_okay=False),
+              help="Folder for the per-cycle tracks and recordings (default: beside the model, MODEL_training/).")
+@click.option("--method", type=click.Choice(["mle", "em"]), default="mle", show_default=True,
+              help="mle: maximum likelihood on the tracked shapes (AC Fig 11.6); em: expectation-maximisation "
+                   "on the measurements behind them (each frame's aggregated normals, or with --from-tracks "
+                   "each shape with its reported std), settings em.tolerance and em.max_iterations.")
+@click.option("--no-rrd", is_flag=True, help="Do not write recordings of the training tracks.")
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
+@with_video_options
+@click.pass_context
+def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tracks, tracks_fps, outdir, method,
+              no_rrd, as_json, fps, start, end, step):
+    """Learn AR(2) dynamics from training CLIPS (AC Fig 11.1).
+
+    Tracks each clip with the Kalman contour tracker (hand-set dynamics from the config in
+    the first cycle), learns dynamics by maximum likelihood from all clips together
+    (statistics pooled, AC Fig 11.6), and repeats with the learned model for --cycles
+    cycles.  Writes the model, and per clip and cycle a track CSV and a recording.
+    --method em learns instead by EM from what the tracker measured, smoothing each
+    sequence under the current model (iterations and log-likelihoods in the model's
+    provenance).
+
+    \b
+    Example:
+      trackcli learn --template head.yaml sample_data/train.mp4 -o head-model.yaml --cycles 2
+    """
+    from pathlib import Path
+
+    from trackcli.io.config import dump_yaml
+    from trackcli.dynamics.model import save_model
+    from trackcli.io.outputs import output_dir, refuse_overwriting_inputs, write_text
+    from trackcli.run.clips import check_template_frame, template_space
+    from trackcli.shapes.template import load_template
+    from trackcli.run.train import learn_from_tracks, parse_shape_space, train
+
+    settings = _settings(config, {"learning.cycles": cycles, **_video_overrides(fps, start, end, step)})
+    tmpl = load_template(template)
+    out_model = Path(output)
+    inputs = {"--template": template, "-c/--config": config,
+              **{f"--from-tracks {t}": t for t in from_tracks}, **{f"CLIP {c}": c for c in clips}}
+    if from_tracks:
+        if clips:
+            raise click.UsageError("give training CLIPS or --from-tracks, not both")
+        refuse_overwriting_inputs({"-o/--output": out_model}, inputs)
+        rate = tracks_fps or settings.video.fps or 25.0
+        model = learn_from_tracks(from_tracks, tmpl, settings, 1.0 / rate, shape_space, method)
+        save_model(out_model, model)
+        _learn_report(model, [], out_model, as_json)
+        return
+    if not clips:
+        raise click.UsageError("give at least one training CLIP (or --from-tracks)")
+    kind, _ = parse_shape_space(shape_space, settings.shape_space)
+    template_space(tmpl, template, "affine" if kind == "pca" else kind)  # a degenerate outline names its file
+    work = Path(outdir or out_model.with_name(out_model.stem + "_training"))
+    refuse_overwriting_inputs({"-o/--output": out_model, "the training configuration": work / "config.yaml"}, inputs)
+    videos = []
+    try:
+        for c in clips:
+            videos.append(_open(c, settings))
+        for v in videos:
+            check_template_frame(tmpl, v)
+
+        def bar(label, n):
+            return _progress(ctx, n, label)
+
+        with output_dir(work):
+            model, records = train(videos, tmpl, settings, cycles=settings.learning.cycles,
+                                   shape_space=shape_space, outdir=work, write_rrd=not no_rrd, progress=bar,
+                                   method=method)
+            # written with the results: a run that fails leaves no configuration behind
+            write_text(work / "config.yaml", dump_yaml(settings))
+            save_model(out_model, model)
+    finally:
+        for v in videos:
+            v.close()
+    _learn_report(model, records, out_model, as_json)
+
+
+def _learn_report(model, records, path, as_json: bool) -> None:
+    rep = model.provenance.get("learning", {})
+    cycles = [{"cycle": r.cycle, "seconds": round(r.seconds, 3),
+               "clips": [{"clip": s.clip, "frames": s.frames, "lost": s.frames_lost,
+                          "seconds": round(s.wall_seconds, 3)} for s in r.runs]} for r in records]
+    if as_json:
+        _echo_json(_clean_json({"model": str(path), "cycles": cycles, "learning": rep,
+                                "modes": [_mode_dict(m, model.space.H) for m in model.dynamics.modes()]}))
+        return
+    for c in cycles:
+        per = ", ".join(f"{Path_name(x['clip'])} {x['seconds']:.1f} s ({x['frames']} frames, {x['lost']} lost)"
+                        for x in c["clips"])
+        click.echo(f"cycle {c['cycle']}: {c['seconds']:.1f} s: {per}")
+    for r in records:
+        if "em" in r.report:
+            click.echo(f"cycle {r.cycle}: {_em_line(r.report['em'])}")
+    if not records and "em" in rep:
+        click.echo(_em_line(rep["em"]))
+    rho = rep.get("spectral_radius")
+    click.echo(f"wrote {path}: {model.space.kind} shape-space ({model.space.Nx} components), "
+               f"spectral radius {rho if rho is None else round(rho, 4)}; see `trackcli inspect {path}`")
+
+
+def _em_line(em: dict) -> str:
+    path = em["log_likelihood"]
+    state = "converged" if em["converged"] else "not converged (em.max_iterations)"
+    return (f"EM {em['iterations']} iteration(s), {state}; log-likelihood of the measurements "
+            f"{path[0]:.1f} -> {path[-1]:.1f}")
+
+
+def Path_name(p: str) -> str:
+    from pathlib import Path
+
+    return Path(p).name
+
+
+def _mode_dict(m, H=None) -> dict:
+    return {"eigenvalue_modulus": m.modulus, "damping_per_s": m.beta, "frequency_hz": m.frequency,
+            "decay_time_s": m.decay_time, "period_s": m.period, "stable": m.stable,
+            "dominant": [[int(i), float(w)] for i, w in m.dominant(3, H)]}
+
+
+# ---------------------------------------------------------------------------------------------
+# inspect and simulate
+
+
+@cli.command("inspect")
+@click.argument("model_path", metavar="MODEL", type=click.Path(dir_okay=False))
+@click.option("--template", type=click.Path(dir_okay=False),
+              help="Show the model placed by this template, as `track --model MODEL --template T` uses it "
+                   "on the clip where T was drawn.")
+@click.option("-c", "--config", type=click.Path(dir_okay=False),
+              help="Configuration whose placement settings apply, as for `track -c` (default: the defaults).")
+@click.option("--fps", type=click.FloatRange(min=0, min_open=True),
+              help="Frame rate of the clip where T was drawn (default: the model's).")
+@click.option("--json", "as_json", is_flag=True, help="Machine-readable output.")
+def inspect_cmd(model_path, template, config, fps, as_json):
+    """Show a model: shape-space, dynamics, modes (AC eqs 11.10-11.13), steady-state spread.
+
+    \b
+    With --template T: the model placed where (and at the size) T was drawn, as tracking
+    that clip uses it: its mean, stability and modes, next to the learned spectral
+    radius.  The placement settings (noise factors, coupling) are those of -c CONFIG, as
+    for `track`.
+    """
+    import numpy as np
+
+    from trackcli.dynamics.model import load_model, place_dynamics, place_space
+    from trackcli.shapes.template import load_template
+
+    m = load_model(model_path)
+    dyn, space = m.dynamics, m.space
+    placement = None
+    if template:
+        tmpl = load_template(template)
+        settings = _settings(config, {})
+        space, X0 = place_space(m.space, tmpl)
+        report: list = []
+        tau = 1.0 / fps if fps else m.dynamics.tau
+        p = settings.placement
+        dyn = place_dynamics(m.dynamics, space, X0, tau, translation_noise=p.translation_noise,
+                             deformation_noise=p.deformation_noise, coupling=p.coupling,
+                             max_spectral_radius=settings.learning.max_spectral_radius, report=report)
+        r = report[0]
+        placement = {"template": str(template), "scale": r.scale, "coupling": r.coupling,
+                     "translation_noise": p.translation_noise, "deformation_noise": p.deformation_noise,
+                     "learned_spectral_radius": r.learned_radius, "spectral_radius": r.radius,
+                     "restabilised": r.restabilised, "limit": r.limit,
+                     "centroid": [float(v) for v in space.origin]}
+    try:
+        rms = dyn.rms_displacement(space.H)
+        Es = space.translation_projector()
+        rms_t = dyn.rms_displacement(space.H, Es)
+        rms_d = dyn.rms_displacement(space.H, np.eye(space.Nx) - Es)
+    except Exception:  # unstable or constant-velocity models have no steady state
+        rms = rms_t = rms_d = None
+    modes = dyn.modes()
+    names = list(space.names)
+    info = {
+        "model": str(model_path),
+        "shape_space": {"kind": space.kind, "components": names, "control_points": space.Nq,
+                        "degree": space.basis.degree, "closed": space.basis.closed},
+        "frame_interval_s": dyn.tau,
+        "spectral_radius": dyn.spectral_radius(),
+        "stable": dyn.is_stable(),
+        "mean": dict(zip(names, map(float, dyn.mean))),
+        "steady_state_rms_px": {"total": rms, "translation": rms_t, "deformation": rms_d},
+        "A1": dyn.A1.tolist(), "A2": dyn.A2.tolist(), "B0": dyn.B0.tolist(),
+        "modes": [_mode_dict(x, space.H) for x in modes],
+        "provenance": m.provenance,
+    }
+    if placement is not None:
+        info["placement"] = placement
+    if as_json:
+        _echo_json(_clean_json(info))
+        return
+    fmt = lambda v: "n/a" if v is None else f"{v:.2f}"  # noqa: E731
+    click.echo(f"model {model_path}" + (f", placed by template {template}" if placement else ""))
+    if placement is not None:
+        click.echo(f"  placement     centroid ({placement['centroid'][0]:.1f}, {placement['centroid'][1]:.1f}) px, "
+                   f"size {placement['scale']:.3f} x the model's template, coupling {placement['coupling']}, "
+                   f"noise factors {placement['translation_noise']:g} (translation), "
+                   f"{placement['deformation_noise']:g} (rest)")
+        click.echo(f"                spectral radius {placement['learned_spectral_radius']:.4f} learned -> "
+                   f"{placement['spectral_radius']:.4f} placed"
+                   + (f" (re-stabilised: modes pulled in to {placement['limit']:.4f})" if placement["restabilised"] else ""))
+    click.echo(f"  shape-space   {space.kind}: {', '.join(names)} ({space.Nq} control points, degree "
+               f"{space.basis.degree}, {'closed' if space.basis.closed else 'open'})")
+    click.echo(f"  frame interval {dyn.tau:.4g} s ({1 / dyn.tau:.3g} frames/s)")
+    click.echo(f"  stability     spectral radius {dyn.spectral_radius():.4f} ({'stable' if dyn.is_stable() else 'UNSTABLE'})")
+    click.echo(f"  steady-state RMS displacement: total {fmt(rms)} px, translation {fmt(rms_t)} px, "
+               f"deformation {fmt(rms_d)} px")
+    click.echo("  mean X         " + ", ".join(f"{n}={v:.4g}" for n, v in zip(names, dyn.mean)))
+    click.echo("  modes (slowest first):")
+    click.echo("    |lambda|  damping(1/s)  freq(Hz)  decay(s)  period(s)  dominant components")
+    for x in modes:
+        dom = ", ".join(f"{names[i]} {w:.2f}" for i, w in x.dominant(3, space.H))
+        per = f"{x.period:9.3f}" if np.isfinite(x.period) else "        -"
+        dec = f"{x.decay_time:8.3f}" if np.isfinite(x.decay_time) else "     inf"
+        click.echo(f"    {x.modulus:8.4f}  {x.beta:12.3f}  {x.frequency:8.3f}  {dec}  {per}  {dom}"
+                   + ("" if x.stable else "  UNSTABLE"))
+    prov = m.provenance
+    if prov:
+        src = prov.get("clips") or prov.get("tracks") or []
+        click.echo(f"  learned from  {', '.join(map(str, src))} ({prov.get('cycles', 0)} cycle(s))")
+
+
+@cli.command("simulate")
+@click.argument("model_path", metavar="MODEL", type=click.Path(dir_okay=False))
+@click.option("--frames", "n_frames", type=click.IntRange(min=2, max=1_000_000), default=250, show_default=True,
+              help="Length of each sample path.")
+@click.option("--paths", "n_paths", type=click.IntRange(min=1, max=20), default=3, show_default=True,
+              help="Number of sample paths.")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Random seed.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), help="Recording (.rrd) to write "
+              "(default: MODEL_sim.rrd); a PNG of the trajectories is written beside it.")
+@click.option("--size", help="Canvas 'W,H' for the PNG (default: the template's frame size).")
+def simulate_cmd(model_path, n_frames, n_paths, seed, output, size):
+    """Draw random sample paths from a model (AC Fig 11.7): the quickest sanity check.
+
+    The PNG shows, for each path, the centroid trajectory and the contour every 10th frame
+    over a blank canvas with the template in grey; the recording animates the paths.
+    """
+    from pathlib import Path
+
+    import numpy as np
+
+    from trackcli.dynamics.model import load_model
+    from trackcli.dynamics.simulate import render_paths, simulate_paths, record_paths
+
+    from trackcli.io.outputs import output_dir, refuse_overwriting_inputs
+
+    out = Path(output) if output else Path(model_path).with_name(Path(model_path).stem + "_sim.rrd")
+    refuse_overwriting_inputs({"-o/--output": out, "the PNG": out.with_suffix(".png")}, {"MODEL": model_path})
+    m = load_model(model_path)
+    canvas = None
+    if size:
+        from trackcli.shapes.draw import parse_numbers
+
+        w, h = parse_numbers(size, 2, "--size")
+        canvas = (int(w), int(h))
+    paths = simulate_paths(m, n_frames, n_paths, np.random.default_rng(seed))
+    png = out.with_suffix(".png")
+    with output_dir(out.parent):
+        try:  # both outputs or none
+            render_paths(m, paths, png, canvas=canvas)
+            record_paths(m, paths, out, seed=seed)
+        except BaseException:
+            png.unlink(missing_ok=True)
+            raise
+    click.echo(f"wrote {out} and {png} ({n_paths} paths of {n_frames} frames)")
+
+
+# ---------------------------------------------------------------------------------------------
+# eval
+
+
+@cli.command("eval")
+@click.argument("tracks", nargs=-1, required=True, type=click.Path(dir_okay=False), metavar="PRED...")
+@click.argument("truth", type=click.Path())
+@click.option("--threshold", type=click.FloatRange(min=0, min_open=True), default=20.0, show_default=True,
+              help="Centre-error threshold (px) for precision.")
+@click.option("--lost-threshold", type=click.FloatRange(min=0, min_open=True),
+              help="Also count a frame lost when its centre error exceeds this (px).")
+@click.option("--object", "object_id", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Object id in a trackcli truth CSV with several objects.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
+              help="Write the precision plot (0-50 px) and the success plot (IoU 0-1) of all PRED to this PNG.")
+@click.option("--json", "as_json", is_flag=True, help="Print the scores as one JSON object per PRED.")
+@click.pass_context
+def eval_cmd(ctx, tracks, truth, threshold, lost_threshold, object_id, plot_path, as_json):
+    """Score estimates PRED (one or more track CSVs) against ground truth TRUTH.
+
+    TRUTH is a trackcli truth CSV (sample_data/*.truth.csv), a benchmark box file (one
+    'x,y,w,h' line per frame, comma or whitespace separated), or a folder holding
+    groundtruth_rect.txt / groundtruth.txt.  Frames are matched by index; when a track and
+    the truth cover different frames, a warning says which frames were scored.
+
+    \b
+    Metrics: centre error (mean, median, max, px), precision at --threshold, success AUC,
+    mean IoU, frames lost, and outline IoU when the track CSV has outline columns and the
+    truth has outlines (a sample-data truth with its CLIP.outline.json beside it).
+
+    \b
+    Success AUC follows the OTB convention: the mean, over the 21 overlap thresholds
+    t = 0, 0.05, ..., 1, of the fraction of frames with IoU > t.  No IoU exceeds 1, so a
+    perfect track scores 20/21 = 0.952, not 1.
+
+    \b
+    Examples:
+      trackcli eval out/test.condensation.csv sample_data/test.truth.csv
+      trackcli eval out/test.condensation.csv out/test.kalman.csv sample_data/test.truth.csv --plot pr.png
+    """
+    from trackcli.run.evaluate import coverage_notes, format_table, load_track, load_truth, score_frames, summarise
+
+    quiet = bool(ctx.find_root().obj and ctx.find_root().obj.get("quiet"))
+    gt = load_truth(truth, object_id=object_id)
+    labels = None
+    if plot_path or len(tracks) > 1:
+        from trackcli.run.plots import track_labels
+
+        labels = track_labels(tracks)
+    curves = []
+    for k, path in enumerate(tracks):
+        pred = load_track(path)
+        scores = score_frames(pred, gt, lost_threshold=lost_threshold)
+        result = summarise(scores, threshold=threshold)
+        notes = coverage_notes(pred, gt, scores)
+        if notes and not quiet:
+            click.echo(f"Warning: {'; '.join(notes)}", err=True)
+        if plot_path:
+            from trackcli.run.plots import curves as make_curves
+
+            curves.append(make_curves(labels[k], scores, threshold))
+        if as_json:
+            _echo_json(_clean_json({"kind": "eval", "track": str(path), "truth": str(truth), **result.to_dict(),
+                                    "warnings": notes}, digits=6))
+        else:
+            if len(tracks) > 1:
+                click.echo(("\n" if k else "") + f"== {labels[k]} ({path})")
+            click.echo(format_table(result))
+    if plot_path:
+        from trackcli.run.plots import write_plots
+
+        out = write_plots(plot_path, curves, threshold=threshold)
+        if not as_json:
+            click.echo(f"wrote {out}")
+
+
+# ---------------------------------------------------------------------------------------------
+# render
+
+
+@cli.command("render")
+@click.argument("track", type=click.Path(dir_okay=False))
+@click.argument("clip", type=click.Path())
+@click.option("-o", "--output", type=click.Path(),
+              help="Output file or folder (default beside TRACK: NAME.mp4, NAME.sheet.png or NAME_frames/).")
+@click.option("--sheet", "sheet", type=click.IntRange(min=1, max=400),
+              help="Write a contact sheet (PNG) of this many frames spread over the selection, instead of a video.")
+@click.option("--png", "png", is_flag=True, help="Write one PNG per frame into a folder, instead of a video.")
+@click.option("--tile-width", type=click.IntRange(min=32, max=4000), default=240, show_default=True,
+              help="Width of each contact-sheet frame (px; frames are only shrunk).")
+@click.option("--truth", type=click.Path(), help="Ground truth (as for eval) whose box is drawn in green.")
+@click.option("--object", "object_id", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Object id in a truth CSV with several objects.")
+@click.option("--no-label", is_flag=True, help="No frame number, LOST or confidence text on the frames.")
+@with_video_options
+@click.pass_context
+def render_cmd(ctx, track, clip, output, sheet, png, tile_width, truth, object_id, no_label, fps, start, end, step):
+    """Draw the estimated outline of TRACK (a track CSV) on the frames of CLIP.
+
+    CLIP is the video file or image folder that was tracked.  The outline comes from the
+    CSV's outline columns, so no model or template is needed.  By default the frames of the
+    track are drawn (--start/--end/--step select others) into an MP4 beside TRACK.  Lost
+    frames show the outline dashed in grey; with --truth the true box is drawn in green.
+
+    \b
+    Examples:
+      trackcli render out/test.condensation.csv sample_data/test.mp4
+      trackcli render out/test.condensation.csv sample_data/test.mp4 --sheet 12 -o sheet.png
+      trackcli render out/crossing.kalman.csv ../footage/crossing --png --truth ../footage/crossing
+    """
+    from trackcli.run.render import default_output, render
+
+    if sheet and png:
+        raise click.UsageError("give --sheet or --png, not both")
+    kind = "sheet" if sheet else ("frames" if png else "video")
+    out = output or default_output(track, kind)
+    gt = None
+    if truth:
+        from trackcli.run.evaluate import load_truth
+
+        gt = load_truth(truth, object_id=object_id)
+    bar_holder: dict = {}
+
+    def opened(n: int) -> None:
+        bar_holder["bar"] = _progress(ctx, n, "rendering").__enter__()
+
+    try:
+        result = render(track, clip, out, kind=kind, sheet_frames=sheet or 12, tile_width=tile_width, truth=gt,
+                        fps=fps, start=start, end=end, step=step, label=not no_label,
+                        progress=lambda k: bar_holder["bar"].update(k), on_open=opened)
+    finally:
+        if "bar" in bar_holder:
+            bar_holder["bar"].__exit__(None, None, None)
+    what = {"video": f"video ({result.codec})", "frames": "PNG frames", "sheet": "contact sheet"}[kind]
+    click.echo(f"wrote {result.output}: {what} of {result.frames} frames, {result.with_estimate} with an estimate")
+
+
+# ---------------------------------------------------------------------------------------------
+# view
+
+
+@cli.command("view")
+@click.argument("recording", type=click.Path(dir_okay=False))
+@click.option("--web", is_flag=True, help="Serve the web viewer over HTTP instead (for machines without a screen); "
+              "open the printed address in a browser.")
+@click.option("--port", type=click.IntRange(min=1, max=65535), help="Port of the web viewer (with --web).")
+def view_cmd(recording, web, port):
+    """Open RECORDING (.rrd) in the Rerun viewer.
+
+    Runs the native viewer that comes with trackcli's rerun-sdk (the 'rerun' program) and
+    waits until it is closed.  Without a screen (DISPLAY unset), says so and what to do
+    instead: --web, or copying the file to a machine with rerun-sdk 0.41 installed.
+    """
+    from trackcli.io.viewer import check_recording, run_viewer, viewer_command
+
+    if port is not None and not web:
+        raise click.UsageError("--port goes with --web")
+    cmd = viewer_command(check_recording(recording), web=web, port=port)
+    log.info("running %s", " ".join(cmd))
+    ctx = click.get_current_context()
+    ctx.exit(run_viewer(cmd))
+
+
+# ---------------------------------------------------------------------------------------------
+# sample data
+
+
+@cli.command("sample-data")
+@click.argument("outdir", type=click.Path(file_okay=False))
+@click.option("--seed", type=click.IntRange(min=0), help="Random seed (default: the seed of the committed sample_data/).")
+@click.option("--clip", "clips", multiple=True,
+              type=click.Choice(["train", "test", "three_heads", "bouncing_ball"]),
+              help="Generate only this clip (repeatable; default all).")
+@click.option("--frames", "n_frames", type=click.IntRange(min=2), help="Shorter (or longer) clips, for quick tries.")
+@click.option("--truth-only", is_flag=True, help="Write the ground truth files but not the videos.")
+@click.pass_context
+def sample_data_cmd(ctx, outdir, seed, clips, n_frames, truth_only):
+    """Generate the synthetic sample clips with exact per-frame ground truth into OUTDIR.
+
+    \b
+    train.mp4          head-and-shoulders moving gently over a clean background
+    test.mp4           the same object moving agilely over heavy clutter, brief occlusion
+    three_heads.mp4    three similar heads, one walking in front of the other two
+    bouncing_ball.mp4  a ball bouncing under gravity
+    Each clip comes with CLIP.truth.csv (centroid, box, pose, visible fraction per frame)
+    and CLIP.outline.json (the true outline).  The same seed gives the same truth files.
+    """
+    from trackcli import sample_data
+
+    chosen = list(clips) or list(sample_data.CLIP_NAMES)
+    kwargs = {"seed": sample_data.DEFAULT_SEED if seed is None else seed, "clips": chosen,
+              "n_frames": n_frames, "truth_only": truth_only}
+    total = sum(n_frames or sample_data.default_n_frames(c) for c in chosen)
+    with _progress(ctx, 0 if truth_only else total, "rendering") as bar:
+        paths = sample_data.generate(outdir, progress=lambda clip, i, n: bar.update(1), **kwargs)
+    for p in paths:
+        click.echo(str(p))
+
+
+def main() -> None:
+    cli(prog_name="trackcli")
+
+
+from trackcli.cli.batch import batch_cmd  # noqa: E402
+
+cli.add_command(batch_cmd)
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

@@ -1,0 +1,756 @@
+"""Second-order auto-regressive (AR(2)) dynamics in shape-space.
+
+A shape vector ``X`` of length ``Nx`` moves by (AC eq 9.15)::
+
+    X_k - X̄ = A2 (X_{k-2} - X̄) + A1 (X_{k-1} - X̄) + B0 w_k,    w_k ~ N(0, I_Nx)
+
+with ``A2, A1, B0`` of shape ``(Nx, Nx)``, mean ``X̄`` and frame interval ``tau`` seconds.
+The driving noise has covariance ``C = B0 B0ᵀ``.  Stacking two frames into the state
+``𝒳_k = (X_{k-1}; X_k)`` gives a first-order process (AC eqs 9.16-9.18)::
+
+    𝒳_k - 𝒳̄ = A (𝒳_{k-1} - 𝒳̄) + B w_k,   A = [[0, I], [A2, A1]],   B = [[0], [B0]]
+
+whose covariance obeys ``P_k = A P_{k-1} Aᵀ + B Bᵀ`` (AC eq 9.23).  For a stable model
+(every eigenvalue of ``A`` inside the unit circle) ``P`` tends to the steady state ``P∞``,
+which is solved for directly here as a discrete Lyapunov equation.
+
+Hand-set models (AC §9.6) are built from damped oscillators: a frequency ``f`` (Hz), a
+damping rate ``beta`` (1/s) and a steady-state RMS displacement ``rho`` (pixels, measured
+with the curve norm ``‖X‖² = Xᵀ H X``) fix ``(a1, a2, b0)`` by AC eqs 9.25-9.26; the
+constant-velocity case ``f = beta = 0`` is set by a growth rate ``gamma0`` instead
+(eq 9.28).  :func:`partitioned` splits shape-space into H-orthogonal subspaces, each with
+its own oscillator (eq 9.30).
+
+Modal analysis (AC eqs 11.10-11.13) reads a model as a set of damped oscillations: each
+eigenvalue ``λ`` of ``A`` gives a damping ``β = -log|λ| / τ`` and a frequency
+``f = arg λ / (2πτ)``; the upper half of its eigenvector is the pattern of motion.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.linalg
+
+from trackcli.errors import ConfigError, DataError, ModelError
+
+__all__ = [
+    "AR2",
+    "Mode",
+    "SubspaceModel",
+    "h_orthogonal_projector",
+    "oscillator_coefficients",
+    "partitioned",
+    "symmetric_sqrt",
+]
+
+
+# ---------------------------------------------------------------------------------------------
+# Small linear-algebra helpers
+
+
+def symmetric_sqrt(M: np.ndarray, *, inverse: bool = False) -> np.ndarray:
+    """Symmetric square root of a symmetric positive semi-definite matrix.
+
+    Parameters
+    ----------
+    M : ndarray of shape (n, n)
+        Symmetric matrix; it is symmetrised first, and eigenvalues below zero (rounding
+        error in a covariance) are clipped to zero.
+    inverse : bool
+        Return ``M^{-1/2}`` instead; then ``M`` must be positive definite.
+
+    Returns
+    -------
+    ndarray of shape (n, n)
+        The symmetric ``S`` with ``S @ S = M`` (or ``S @ S = M^{-1}``).
+    """
+    M = np.asarray(M, dtype=float)
+    vals, vecs = np.linalg.eigh(0.5 * (M + M.T))
+    if inverse:
+        if vals.min() <= 0:
+            raise DataError(f"matrix is not positive definite (smallest eigenvalue {vals.min():.3g}); no inverse square root")
+        roots = 1.0 / np.sqrt(vals)
+    else:
+        roots = np.sqrt(np.clip(vals, 0.0, None))
+    S = (vecs * roots) @ vecs.T
+    return 0.5 * (S + S.T)
+
+
+def _check_metric(H: Any, nx: int) -> np.ndarray:
+    """Validate a shape-space metric matrix ``H`` of shape ``(nx, nx)``."""
+    H = np.asarray(H, dtype=float)
+    if H.shape != (nx, nx):
+        raise DataError(f"metric matrix H must have shape ({nx}, {nx}) to match the shape-space, got {H.shape}")
+    if not np.all(np.isfinite(H)):
+        raise DataError("metric matrix H contains non-finite values")
+    scale = max(float(np.abs(H).max()), np.finfo(float).tiny)
+    if np.abs(H - H.T).max() > 1e-9 * scale:
+        raise DataError("metric matrix H must be symmetric")
+    H = 0.5 * (H + H.T)
+    smallest = float(np.linalg.eigvalsh(H).min())
+    if smallest <= 1e-12 * scale:
+        raise DataError(f"metric matrix H must be positive definite (smallest eigenvalue {smallest:.3g})")
+    return H
+
+
+# ---------------------------------------------------------------------------------------------
+# The model
+
+
+@dataclass(frozen=True, eq=False)
+class Mode:
+    """One mode of an AR(2) model (AC §11.3, eqs 11.10-11.13).
+
+    A complex eigenvalue stands for its conjugate pair: one damped oscillation
+    ``exp(-βt) cos(2πft)``.  A real positive eigenvalue is a plain exponential decay
+    (``f = 0``); a real negative one flips sign every frame, ``f = 1/(2τ)``.
+
+    Attributes
+    ----------
+    eigenvalue : complex
+        Eigenvalue ``λ`` of the state matrix ``A`` (the member with ``Im λ >= 0``).
+    modulus : float
+        ``|λ|``; the mode is stable when it is below 1.
+    beta : float
+        Damping rate ``-log|λ| / τ`` in 1/s (negative for a growing mode, ``inf`` for λ = 0).
+    frequency : float
+        Oscillation frequency ``|arg λ| / (2πτ)`` in Hz.
+    decay_time : float
+        ``1 / β`` in seconds (negative: the e-folding time of a growing mode; ``inf``: β = 0).
+    period : float
+        ``1 / f`` in seconds (``inf`` for a non-oscillating mode).
+    stable : bool
+        ``|λ| < 1``.
+    shape : ndarray of shape (Nx,), complex
+        Pattern of motion: the upper half of the eigenvector, scaled to unit length and
+        rotated so that its largest component is real and positive.  Moduli are
+        amplitudes, arguments are relative phases.
+    weights : ndarray of shape (Nx,)
+        ``|shape|²``, the share of each shape-space component (sums to 1).
+    """
+
+    eigenvalue: complex
+    modulus: float
+    beta: float
+    frequency: float
+    decay_time: float
+    period: float
+    stable: bool
+    shape: np.ndarray = field(repr=False)
+    weights: np.ndarray = field(repr=False)
+
+    @property
+    def oscillatory(self) -> bool:
+        """True for a conjugate pair (a damped sinusoid), false for a real eigenvalue."""
+        return self.eigenvalue.imag > 0
+
+    def dominant(self, count: int = 3, H: np.ndarray | None = None) -> list[tuple[int, float]]:
+        """The ``count`` largest components of the mode shape.
+
+        Parameters
+        ----------
+        count : int
+            How many components.
+        H : ndarray of shape (Nx, Nx), optional
+            Shape-space metric.  Components of a shape vector have different units
+            (pixels for translation, fractions for scale); with ``H`` each component is
+            weighted by the curve displacement it causes, ``|shape[i]|² H[i, i]``, so the
+            weights compare like with like.
+
+        Returns
+        -------
+        list of (index, weight)
+            Shape-space indices with their weights (summing to 1 over all components),
+            largest first.
+        """
+        w = self.weights
+        if H is not None:
+            w = np.abs(self.shape) ** 2 * np.clip(np.diag(np.asarray(H, dtype=float)), 0.0, None)
+            total = float(w.sum())
+            w = w / total if total > 0 else self.weights
+        order = np.argsort(-w, kind="stable")[: max(int(count), 0)]
+        return [(int(i), float(w[i])) for i in order]
+
+    def summary(self) -> str:
+        """One line describing the mode, for reports."""
+        kind = f"f = {self.frequency:.3g} Hz" if self.frequency > 0 else "no oscillation"
+        parts = ", ".join(f"X[{i}] {w:.2f}" for i, w in self.dominant() if w >= 0.01)
+        state = "stable" if self.stable else "UNSTABLE"
+        return (f"|λ| = {self.modulus:.4f} ({state}), {kind}, β = {self.beta:.3g}/s "
+                f"(decay {self.decay_time:.3g} s); shape: {parts}")
+
+
+@dataclass(frozen=True, eq=False)
+class AR2:
+    """Second-order AR dynamics in shape-space (AC eq 9.15).
+
+    ``X_k - mean = A2 (X_{k-2} - mean) + A1 (X_{k-1} - mean) + B0 w_k``, ``w_k ~ N(0, I)``.
+
+    Attributes
+    ----------
+    A2 : ndarray of shape (Nx, Nx)
+        Coefficient of the shape two frames back.
+    A1 : ndarray of shape (Nx, Nx)
+        Coefficient of the previous shape.
+    B0 : ndarray of shape (Nx, Nx)
+        Noise gain; the driving noise covariance is ``C = B0 B0ᵀ``.
+    mean : ndarray of shape (Nx,)
+        Mean shape ``X̄``.
+    tau : float
+        Frame interval in seconds.
+
+    The arrays are stored as read-only float64 copies.  Construction raises
+    :class:`~trackcli.errors.ModelError` when shapes disagree or values are not finite.
+    """
+
+    A2: np.ndarray
+    A1: np.ndarray
+    B0: np.ndarray
+    mean: np.ndarray
+    tau: float
+
+    def __post_init__(self) -> None:
+        arrays = {}
+        for name in ("A2", "A1", "B0", "mean"):
+            try:
+                a = np.array(getattr(self, name), dtype=float)
+            except (TypeError, ValueError):
+                raise ModelError(f"dynamics {name} must be an array of numbers") from None
+            arrays[name] = a
+        mean = arrays["mean"]
+        if mean.ndim != 1 or mean.size == 0:
+            raise ModelError(f"dynamics mean must be a vector of length Nx >= 1, got an array of shape {mean.shape}")
+        nx = mean.size
+        for name in ("A2", "A1", "B0"):
+            if arrays[name].shape != (nx, nx):
+                raise ModelError(f"dynamics {name} must have shape ({nx}, {nx}) to match the mean of length {nx}, "
+                                 f"got {arrays[name].shape}")
+        for name, a in arrays.items():
+            if not np.all(np.isfinite(a)):
+                raise ModelError(f"dynamics {name} contains non-finite values")
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+        try:
+            tau = float(self.tau)
+        except (TypeError, ValueError):
+            raise ModelError(f"dynamics tau must be a number of seconds, got {self.tau!r}") from None
+        if not (math.isfinite(tau) and tau > 0):
+            raise ModelError(f"dynamics tau (frame interval) must be a positive number of seconds, got {self.tau!r}")
+        object.__setattr__(self, "tau", tau)
+
+    # -- structure ----------------------------------------------------------------------------
+
+    @property
+    def nx(self) -> int:
+        """Shape-space dimension ``Nx``."""
+        return int(self.mean.size)
+
+    def noise_covariance(self) -> np.ndarray:
+        """``C = B0 B0ᵀ``, shape ``(Nx, Nx)``."""
+        return self.B0 @ self.B0.T
+
+    def state_matrices(self) -> tuple[np.ndarray, np.ndarray]:
+        """State-space form for ``𝒳_k = (X_{k-1}; X_k)`` (AC eq 9.18).
+
+        Returns
+        -------
+        A : ndarray of shape (2 Nx, 2 Nx)
+            ``[[0, I], [A2, A1]]``.
+        B : ndarray of shape (2 Nx, Nx)
+            ``[[0], [B0]]``.
+        """
+        n = self.nx
+        A = np.zeros((2 * n, 2 * n))
+        A[:n, n:] = np.eye(n)
+        A[n:, :n] = self.A2
+        A[n:, n:] = self.A1
+        B = np.zeros((2 * n, n))
+        B[n:] = self.B0
+        return A, B
+
+    def state_mean(self) -> np.ndarray:
+        """Mean state ``(X̄; X̄)``, shape ``(2 Nx,)``."""
+        return np.concatenate([self.mean, self.mean])
+
+    def eigenvalues(self) -> np.ndarray:
+        """Eigenvalues of the state matrix ``A``, shape ``(2 Nx,)`` (complex)."""
+        return np.linalg.eigvals(self.state_matrices()[0])
+
+    def spectral_radius(self) -> float:
+        """Largest eigenvalue modulus of ``A``; the model is stable when it is below 1."""
+        return float(np.abs(self.eigenvalues()).max())
+
+    def is_stable(self) -> bool:
+        """True when every mode decays (spectral radius < 1), so a steady state exists."""
+        return self.spectral_radius() < 1.0
+
+    # -- steady state -------------------------------------------------------------------------
+
+    def steady_state_covariance(self) -> np.ndarray:
+        """Steady-state covariance ``P∞`` of the state ``𝒳 = (X_{k-1}; X_k)``.
+
+        The fixed point of ``P = A P Aᵀ + B Bᵀ`` (AC eq 9.23), solved as a discrete
+        Lyapunov equation.  The lower-right ``(Nx, Nx)`` block is the covariance of ``X``
+        (the Gaussian envelope), the off-diagonal blocks the lag-one covariance.
+
+        Returns
+        -------
+        ndarray of shape (2 Nx, 2 Nx)
+
+        Raises
+        ------
+        DataError
+            If the model is not stable (spectral radius >= 1), e.g. constant velocity.
+        """
+        radius = self.spectral_radius()
+        if radius >= 1.0:
+            raise DataError(f"the model has no steady state: its spectral radius is {radius:.6g} (must be < 1); "
+                            "constant-velocity and other undamped motion grows without bound")
+        A, B = self.state_matrices()
+        P = scipy.linalg.solve_discrete_lyapunov(A, B @ B.T)
+        return 0.5 * (P + P.T)
+
+    def rms_displacement(self, H: np.ndarray, projector: np.ndarray | None = None) -> float:
+        """Steady-state RMS curve displacement from the mean, ``sqrt(trace(H P_XX))``.
+
+        Parameters
+        ----------
+        H : ndarray of shape (Nx, Nx)
+            Shape-space metric matrix (``‖X‖² = Xᵀ H X`` is the mean-square displacement
+            along the curve, AC eq 8.6).
+        projector : ndarray of shape (Nx, Nx), optional
+            An H-orthogonal projector ``E`` onto a subspace; then the RMS displacement of
+            ``E X`` alone, ``sqrt(trace(H E P_XX Eᵀ))``.
+
+        Returns
+        -------
+        float
+            In the units of the curve (pixels).
+        """
+        H = _check_metric(H, self.nx)
+        n = self.nx
+        P = self.steady_state_covariance()[n:, n:]
+        if projector is not None:
+            E = np.asarray(projector, dtype=float)
+            if E.shape != (n, n):
+                raise DataError(f"projector must have shape ({n}, {n}), got {E.shape}")
+            P = E @ P @ E.T
+        return math.sqrt(max(float(np.trace(H @ P)), 0.0))
+
+    # -- sampling -----------------------------------------------------------------------------
+
+    def predict(self, prev: np.ndarray, cur: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Sample the next shape for each of many states at once.
+
+        Parameters
+        ----------
+        prev : ndarray of shape (N, Nx) or (Nx,)
+            ``X_{k-2}`` of each state.
+        cur : ndarray of shape (N, Nx) or (Nx,)
+            ``X_{k-1}`` of each state.
+        rng : numpy.random.Generator
+            Source of the driving noise (``N * Nx`` standard normals are drawn).
+
+        Returns
+        -------
+        ndarray of the shape of ``cur``
+            ``X_k`` sampled from AC eq 9.15.
+        """
+        prev = np.asarray(prev, dtype=float)
+        cur = np.asarray(cur, dtype=float)
+        if cur.shape != prev.shape or cur.ndim not in (1, 2) or cur.shape[-1] != self.nx:
+            raise DataError(f"prev and cur must both have shape (N, {self.nx}) or ({self.nx},), "
+                            f"got {prev.shape} and {cur.shape}")
+        noise = rng.standard_normal(cur.shape)
+        return (self.mean + (prev - self.mean) @ self.A2.T + (cur - self.mean) @ self.A1.T
+                + noise @ self.B0.T)
+
+    def simulate(self, n_frames: int, rng: np.random.Generator, *, x0: np.ndarray | None = None,
+                 x1: np.ndarray | None = None, burn_in: int = 0) -> np.ndarray:
+        """Draw one sample path (AC Fig 11.7: the quickest check of a model).
+
+        Parameters
+        ----------
+        n_frames : int
+            Number of frames returned.
+        rng : numpy.random.Generator
+            Source of the driving noise.
+        x0, x1 : ndarray of shape (Nx,), optional
+            The first two shapes of the path.  ``x0`` defaults to the mean; ``x1``
+            defaults to ``x0`` (starting at rest).
+        burn_in : int
+            Frames generated first and discarded, so that a stable model forgets its
+            starting point; the returned path then starts ``burn_in`` frames later.
+
+        Returns
+        -------
+        ndarray of shape (n_frames, Nx)
+            With ``burn_in = 0`` the first two rows are ``x0`` and ``x1``.
+        """
+        n_frames, burn_in = int(n_frames), int(burn_in)
+        if n_frames < 1:
+            raise DataError(f"n_frames must be at least 1, got {n_frames}")
+        if burn_in < 0:
+            raise DataError(f"burn_in must be >= 0, got {burn_in}")
+        start = self.mean if x0 is None else self._vector(x0, "x0")
+        second = start if x1 is None else self._vector(x1, "x1")
+        total = n_frames + burn_in
+        dev = np.zeros((max(total, 2), self.nx))
+        dev[0], dev[1] = start - self.mean, second - self.mean
+        noise = rng.standard_normal((max(total - 2, 0), self.nx)) @ self.B0.T
+        for k in range(2, total):
+            dev[k] = self.A2 @ dev[k - 2] + self.A1 @ dev[k - 1] + noise[k - 2]
+        return (dev + self.mean)[burn_in:total]
+
+    def _vector(self, x: Any, name: str) -> np.ndarray:
+        v = np.asarray(x, dtype=float)
+        if v.shape != (self.nx,):
+            raise DataError(f"{name} must be a shape vector of length {self.nx}, got shape {v.shape}")
+        return v
+
+    # -- modal analysis -----------------------------------------------------------------------
+
+    def modes(self) -> list[Mode]:
+        """Modal analysis of the state matrix (AC §11.3, eqs 11.10-11.13).
+
+        Returns
+        -------
+        list of Mode
+            One entry per real eigenvalue and one per conjugate pair, slowest decay
+            (largest ``|λ|``) first.
+        """
+        A, _ = self.state_matrices()
+        vals, vecs = np.linalg.eig(A)
+        n, tau = self.nx, self.tau
+        out = []
+        for lam, vec in zip(vals, vecs.T):
+            lam = complex(lam)
+            if lam.imag < 0:
+                continue  # represented by its conjugate
+            x = np.asarray(vec[:n], dtype=complex)
+            x = x / np.linalg.norm(x)
+            big = int(np.argmax(np.abs(x)))
+            x = x * (abs(x[big]) / x[big])
+            if lam.imag == 0:
+                x = x.real.astype(complex)
+            modulus = abs(lam)
+            beta = math.inf if modulus == 0 else -math.log(modulus) / tau
+            if lam.imag > 0:
+                freq = math.atan2(lam.imag, lam.real) / (2 * math.pi * tau)
+            elif lam.real < 0:
+                freq = 1.0 / (2 * tau)
+            else:
+                freq = 0.0
+            decay = math.inf if beta == 0 else 1.0 / beta
+            period = math.inf if freq == 0 else 1.0 / freq
+            weights = np.abs(x) ** 2
+            x.setflags(write=False)
+            weights.setflags(write=False)
+            out.append(Mode(eigenvalue=lam, modulus=modulus, beta=beta, frequency=freq, decay_time=decay,
+                            period=period, stable=modulus < 1.0, shape=x, weights=weights))
+        out.sort(key=lambda m: (-m.modulus, m.frequency))
+        return out
+
+    # -- files --------------------------------------------------------------------------------
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain nested lists and floats, for YAML."""
+        return {
+            "tau": float(self.tau),
+            "mean": [float(v) for v in self.mean],
+            "A2": [[float(v) for v in row] for row in self.A2],
+            "A1": [[float(v) for v in row] for row in self.A1],
+            "B0": [[float(v) for v in row] for row in self.B0],
+        }
+
+    @classmethod
+    def from_dict(cls, d: Any, where: str = "dynamics") -> AR2:
+        """Rebuild a model from :meth:`to_dict` output, validating everything.
+
+        Raises
+        ------
+        ModelError
+            Naming ``where`` and the offending key when the mapping is malformed.
+        """
+        keys = ("tau", "mean", "A2", "A1", "B0")
+        if not isinstance(d, Mapping):
+            raise ModelError(f"{where}: expected a mapping with keys {', '.join(keys)}, got {type(d).__name__}")
+        missing = [k for k in keys if k not in d]
+        if missing:
+            raise ModelError(f"{where}: missing {', '.join(missing)} (an AR(2) model needs {', '.join(keys)})")
+        unknown = sorted(str(k) for k in d if k not in keys)
+        if unknown:
+            raise ModelError(f"{where}: unknown key(s) {', '.join(unknown)} (valid: {', '.join(keys)})")
+        values: dict[str, Any] = {}
+        for key, ndim in (("mean", 1), ("A2", 2), ("A1", 2), ("B0", 2)):
+            raw = d[key]
+            what = "a list of numbers" if ndim == 1 else "a list of rows of numbers"
+            if isinstance(raw, (str, bytes)) or isinstance(raw, Mapping):
+                raise ModelError(f"{where}.{key}: expected {what}, got {raw!r}")
+            try:
+                arr = np.array(raw, dtype=float)
+            except (TypeError, ValueError):
+                raise ModelError(f"{where}.{key}: expected {what} (rows of equal length)") from None
+            if arr.ndim != ndim:
+                raise ModelError(f"{where}.{key}: expected {what}, got an array of shape {arr.shape}")
+            values[key] = arr
+        tau = d["tau"]
+        if isinstance(tau, bool) or not isinstance(tau, (int, float)):
+            raise ModelError(f"{where}.tau: expected the frame interval in seconds, got {tau!r}")
+        try:
+            return cls(values["A2"], values["A1"], values["B0"], values["mean"], float(tau))
+        except ModelError as exc:
+            raise ModelError(f"{where}: {exc}") from None
+
+
+# ---------------------------------------------------------------------------------------------
+# Hand-set defaults (AC §9.6)
+
+
+def _number(name: str, value: Any) -> float:
+    if isinstance(value, bool):
+        raise ConfigError(f"{name} must be a number, got {value!r}")
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(out):
+        raise ConfigError(f"{name} must be finite, got {value!r}")
+    return out
+
+
+def oscillator_coefficients(f: float, beta: float, rho: float | None, tau: float, *,
+                            gamma0: float | None = None) -> tuple[float, float, float]:
+    """Coefficients ``(a1, a2, b0)`` of a one-dimensional damped oscillator (AC §9.6).
+
+    ``a2 = -exp(-2βτ)`` and ``a1 = 2 exp(-βτ) cos(2πfτ)`` (AC eq 9.25) put the state
+    matrix eigenvalues at ``exp(-βτ ± 2πifτ)``.  ``b0`` gives the steady-state RMS
+    displacement ``rho`` (AC eq 9.26)::
+
+        b0 = rho * sqrt(1 - a2² - a1² - 2 a2 a1² / (1 - a2))
+
+    evaluated in an algebraically equal form that keeps its precision when ``βτ`` is
+    small.  ``f = 0`` is critical damping.
+
+    Constant velocity, ``f = beta = 0`` (so ``a1 = 2, a2 = -1``), has no steady state and
+    ``rho`` is not used; the noise is set by the growth rate ``gamma0`` instead,
+    ``b0 = gamma0 τ^{3/2}`` (AC eq 9.28).  With that ``b0`` the RMS displacement after
+    ``n`` frames from a known position and velocity is ``b0 sqrt(Σ_{m=1..n} m²)``, which
+    grows as ``(gamma0/√3) t^{3/2}``: the book's ``ρ(t) = gamma0 t^{3/2}`` up to that
+    constant factor.
+
+    With ``f = 0``, ``beta > 0``, ``rho = None`` and ``gamma0`` given, the model is a
+    *damped velocity* with a free position: ``a1 = 1 + exp(-βτ)``, ``a2 = -exp(-βτ)``
+    (eigenvalues 1 and ``exp(-βτ)``), ``b0 = gamma0 τ^{3/2}``.  The velocity forgets itself
+    at the rate ``beta`` and the position has no steady state and no preferred place — the
+    right prior for the translation of an object that may roam anywhere in the frame.
+
+    Parameters
+    ----------
+    f : float
+        Frequency in Hz, ``0 <= f <= 1/(2τ)`` (higher frequencies alias).
+    beta : float
+        Damping rate in 1/s, ``>= 0``; 0 only together with ``f = 0``.
+    rho : float or None
+        Steady-state RMS displacement (pixels), ``>= 0``; ignored for constant velocity.
+    tau : float
+        Frame interval in seconds, ``> 0``.
+    gamma0 : float, optional
+        Constant-velocity growth rate in pixels / s^{3/2}; required when ``f = beta = 0``.
+
+    Returns
+    -------
+    (a1, a2, b0) : tuple of float
+    """
+    f = _number("f", f)
+    beta = _number("beta", beta)
+    tau = _number("tau", tau)
+    if tau <= 0:
+        raise ConfigError(f"tau (frame interval) must be > 0 seconds, got {tau}")
+    if beta < 0:
+        raise ConfigError(f"beta (damping rate) must be >= 0 per second, got {beta}")
+    nyquist = 1.0 / (2.0 * tau)
+    if not 0 <= f <= nyquist * (1 + 1e-12):
+        raise ConfigError(f"f must lie between 0 and the Nyquist frequency 1/(2 tau) = {nyquist:.6g} Hz, got {f}")
+    if beta == 0:
+        if f != 0:
+            raise ConfigError(f"an undamped oscillation (beta = 0, f = {f} Hz) has no steady state; "
+                              "use beta > 0, or f = beta = 0 for constant velocity")
+        if gamma0 is None:
+            raise ConfigError("constant-velocity dynamics (f = beta = 0) have no steady state, so rho cannot set "
+                              "the noise: give gamma0 (RMS growth rate, pixels / s^1.5; AC eq 9.28)")
+        g = _number("gamma0", gamma0)
+        if g < 0:
+            raise ConfigError(f"gamma0 must be >= 0, got {g}")
+        return 2.0, -1.0, g * tau**1.5
+    if rho is None and gamma0 is not None and f == 0:
+        # Damped velocity, free position: eigenvalues 1 and exp(-βτ), so
+        # X_k - X_{k-1} = exp(-βτ) (X_{k-1} - X_{k-2}) + b0 w_k, with b0 = gamma0 τ^{3/2}
+        # as in the constant-velocity case (AC eq 9.28), which this becomes as β → 0.
+        g = _number("gamma0", gamma0)
+        if g < 0:
+            raise ConfigError(f"gamma0 must be >= 0, got {g}")
+        decay = math.exp(-beta * tau)
+        return 1.0 + decay, -decay, g * tau**1.5
+    if rho is None:
+        raise ConfigError(f"rho (steady-state RMS displacement) is required for a damped oscillator (beta = {beta}); "
+                          "or give gamma0 with f = 0 and rho null for a damped velocity with a free position")
+    r = _number("rho", rho)
+    if r < 0:
+        raise ConfigError(f"rho must be >= 0, got {r}")
+    decay = math.exp(-beta * tau)
+    theta = 2.0 * math.pi * f * tau
+    a2 = -decay * decay
+    a1 = 2.0 * decay * math.cos(theta)
+    # 1 - a2² - a1² - 2 a2 a1²/(1 - a2) = (1 + a2)(1 - a2 - a1)(1 - a2 + a1) / (1 - a2), with
+    # 1 + a2 = -expm1(-2βτ), 1 - a2 ∓ a1 = (1 - e)² + 4 e sin²(θ/2)  resp.  (1 - e)² + 4 e cos²(θ/2).
+    one_plus_a2 = -math.expm1(-2.0 * beta * tau)
+    gap = -math.expm1(-beta * tau)
+    minus = gap * gap + 4.0 * decay * math.sin(theta / 2) ** 2
+    plus = gap * gap + 4.0 * decay * math.cos(theta / 2) ** 2
+    b0 = r * math.sqrt(one_plus_a2 * minus * plus / (1.0 - a2))
+    return a1, a2, b0
+
+
+@dataclass(frozen=True, eq=False)
+class SubspaceModel:
+    """One part of a partitioned model (AC eq 9.30): a subspace and its oscillator.
+
+    Attributes
+    ----------
+    projector : ndarray of shape (Nx, Nx)
+        H-orthogonal projector ``E`` onto the subspace (``E² = E``, ``H E`` symmetric).
+    a1, a2, b0 : float
+        Oscillator coefficients, e.g. from :func:`oscillator_coefficients`.
+    """
+
+    projector: np.ndarray
+    a1: float
+    a2: float
+    b0: float
+
+    def __post_init__(self) -> None:
+        E = np.array(self.projector, dtype=float)
+        if E.ndim != 2 or E.shape[0] != E.shape[1]:
+            raise DataError(f"a subspace projector must be a square matrix, got shape {E.shape}")
+        if not np.all(np.isfinite(E)):
+            raise DataError("a subspace projector contains non-finite values")
+        E.setflags(write=False)
+        object.__setattr__(self, "projector", E)
+        for name in ("a1", "a2", "b0"):
+            value = float(getattr(self, name))
+            if not math.isfinite(value):
+                raise DataError(f"subspace coefficient {name} must be finite, got {value}")
+            object.__setattr__(self, name, value)
+
+    @classmethod
+    def oscillator(cls, projector: np.ndarray, f: float, beta: float, rho: float | None, tau: float, *,
+                   gamma0: float | None = None) -> SubspaceModel:
+        """A subspace with the oscillator of :func:`oscillator_coefficients`."""
+        a1, a2, b0 = oscillator_coefficients(f, beta, rho, tau, gamma0=gamma0)
+        return cls(projector, a1, a2, b0)
+
+    @property
+    def rank(self) -> int:
+        """Dimension ``N_i`` of the subspace (the trace of the projector)."""
+        return int(round(float(np.trace(self.projector))))
+
+
+def h_orthogonal_projector(H: np.ndarray, basis: np.ndarray) -> np.ndarray:
+    """H-orthogonal projector onto the span of some shape-space directions.
+
+    ``E = V (Vᵀ H V)⁻¹ Vᵀ H``: ``E X`` is the closest point of the subspace to ``X`` in the
+    curve norm, and ``I - E`` projects onto its H-orthogonal complement.
+
+    Parameters
+    ----------
+    H : ndarray of shape (Nx, Nx)
+        Shape-space metric matrix.
+    basis : ndarray of shape (Nx, k)
+        Columns spanning the subspace (e.g. the unit vectors of the translation
+        components of an affine space).
+
+    Returns
+    -------
+    ndarray of shape (Nx, Nx)
+    """
+    V = np.asarray(basis, dtype=float)
+    if V.ndim == 1:
+        V = V[:, None]
+    if V.ndim != 2 or V.shape[1] < 1:
+        raise DataError(f"basis must be an (Nx, k) array of column vectors, got shape {V.shape}")
+    H = _check_metric(H, V.shape[0])
+    G = V.T @ H @ V
+    if np.linalg.matrix_rank(G) < V.shape[1]:
+        raise DataError(f"the {V.shape[1]} basis columns are linearly dependent")
+    return V @ np.linalg.solve(G, V.T @ H)
+
+
+def partitioned(H: np.ndarray, parts: Sequence[SubspaceModel], mean: np.ndarray, tau: float) -> AR2:
+    """Partitioned harmonic model across H-orthogonal subspaces (AC eq 9.30).
+
+    ``A2 = Σ a2ⁱ Eⁱ``, ``A1 = Σ a1ⁱ Eⁱ``, ``B0 = Σ (b0ⁱ / √Nᵢ) Eⁱ H^{-1/2}`` with the
+    symmetric square root of ``H``.  Because the projectors are H-orthogonal, each
+    subspace moves independently and its steady-state covariance is
+    ``(ρᵢ² / Nᵢ) Eⁱ H⁻¹`` (AC eq 9.29 per subspace), so the RMS displacement of ``Eⁱ X`` is
+    the ``ρᵢ`` its ``b0ⁱ`` was designed for; the variances add up over subspaces.  One part
+    with ``E = I`` is the isotropic model of AC §9.6.
+
+    Parameters
+    ----------
+    H : ndarray of shape (Nx, Nx)
+        Shape-space metric matrix.
+    parts : sequence of SubspaceModel
+        Subspaces whose projectors sum to the identity.
+    mean : ndarray of shape (Nx,)
+        Mean shape ``X̄`` (e.g. zeros: the template itself).
+    tau : float
+        Frame interval in seconds.
+
+    Returns
+    -------
+    AR2
+    """
+    mean = np.asarray(mean, dtype=float)
+    if mean.ndim != 1:
+        raise DataError(f"mean must be a shape vector of shape (Nx,), got {mean.shape}")
+    n = mean.size
+    H = _check_metric(H, n)
+    parts = list(parts)
+    if not parts:
+        raise DataError("a partitioned model needs at least one subspace")
+    eye = np.eye(n)
+    total = np.zeros((n, n))
+    A2 = np.zeros((n, n))
+    A1 = np.zeros((n, n))
+    B0 = np.zeros((n, n))
+    h_inv_root = symmetric_sqrt(H, inverse=True)
+    tol = 1e-8
+    for i, part in enumerate(parts):
+        if not isinstance(part, SubspaceModel):
+            raise DataError(f"part {i} must be a SubspaceModel, got {type(part).__name__}")
+        E = part.projector
+        if E.shape != (n, n):
+            raise DataError(f"part {i}: projector must have shape ({n}, {n}), got {E.shape}")
+        scale = max(1.0, float(np.abs(E).max()))
+        if np.abs(E @ E - E).max() > tol * scale:
+            raise DataError(f"part {i}: the matrix is not a projector (E @ E differs from E)")
+        HE = H @ E
+        if np.abs(HE - HE.T).max() > tol * scale * float(np.abs(H).max()):
+            raise DataError(f"part {i}: the projector is not H-orthogonal (H E must be symmetric); "
+                            "build it with h_orthogonal_projector")
+        rank = part.rank
+        if rank < 1:
+            raise DataError(f"part {i}: the projector is zero (rank 0)")
+        total += E
+        A2 += part.a2 * E
+        A1 += part.a1 * E
+        B0 += (part.b0 / math.sqrt(rank)) * E
+    if np.abs(total - eye).max() > tol * len(parts):
+        raise DataError("the subspace projectors must sum to the identity (every shape direction in exactly one part)")
+    return AR2(A2, A1, B0 @ h_inv_root, mean, tau)

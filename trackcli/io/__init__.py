@@ -1,0 +1,9 @@
+"""Everything read from or written to disk.
+
+- :mod:`.video` — decoding of video files and image folders.
+- :mod:`.recording` — the Rerun ``.rrd`` recording of a run.
+- :mod:`.tracks` — the track CSV: writing rows, reading tracks, outlines and uncertainty.
+- :mod:`.config` — settings, presets, YAML with limits, dotted-key overrides.
+- :mod:`.outputs` — atomic writes, output folders, refusal to write over inputs.
+- :mod:`.viewer` — opening recordings in the Rerun viewer.
+"""

@@ -1,0 +1,278 @@
+"""The track format: one CSV row of estimates per frame.
+
+Columns, in order:
+
+``frame, time``
+    original frame index (0-based) and time in seconds;
+``X_<name>`` …
+    the estimated shape vector, one column per shape-space component (``X_tx, X_ty, …``);
+``std_<name>`` …
+    its posterior standard deviation;
+``cx, cy``
+    area centroid of the estimated contour, px;
+``bbox_x, bbox_y, bbox_w, bbox_h``
+    tight box of the estimated contour, px;
+``n_found, n_normals``
+    measurement normals that found a feature, and how many there are;
+``gate_rms``
+    RMS search half-width along the normals, px;
+``ess``
+    effective sample size (CONDENSATION; empty for Kalman);
+``loglik``
+    log-likelihood of the estimated contour under CONDENSATION's observation model (empty for Kalman);
+``lost``
+    1 when the tracker judges it has lost lock (its confidence is below
+    ``measurement.lost_below``), else 0;
+``confidence``
+    the tracker's confidence in [0, 1] that the estimate is on the object, from the evidence
+    per normal of the estimated curve against background (:mod:`trackcli.observe.discriminant`) and the
+    spread of its position;
+``log_d``
+    log of the contour discriminant of the estimated curve (> 0: more object-like than
+    clutter).
+
+After these (and after any other per-frame column a tracker adds), when the run writes
+outlines (``output.outline_points`` = P > 0, the default 64):
+
+``outline_closed``
+    1 for a closed curve (the outline is a polygon), 0 for an open one (a polyline);
+``outline_x0, outline_y0, …, outline_x{P-1}, outline_y{P-1}``
+    P points of the estimated curve, px, equally spaced in the spline parameter (for a
+    closed curve ``s_i = i L / P``, for an open one from ``s = 0`` to ``s = L`` inclusive).
+
+With them any program can draw the estimate or score its outline without trackcli: a row's
+``outline_x*, outline_y*`` cells, in order, are the vertices.  Readers should find columns by
+name, not by position.
+
+Files are written atomically: a run that stops early leaves no half-written CSV.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+
+from trackcli.errors import InputError
+from trackcli.io.outputs import atomic_path
+
+FIXED_AFTER = ["cx", "cy", "bbox_x", "bbox_y", "bbox_w", "bbox_h", "n_found", "n_normals", "gate_rms", "ess", "loglik", "lost", "confidence", "log_d"]
+
+
+def header(names: Sequence[str]) -> list[str]:
+    """Column names for a shape-space with component ``names``."""
+    return ["frame", "time", *[f"X_{n}" for n in names], *[f"std_{n}" for n in names], *FIXED_AFTER]
+
+
+def _fmt(v: float, digits: int = 6) -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return ""
+    return f"{v:.{digits}g}" if abs(v) < 1e-3 and v != 0 else f"{v:.{digits}f}".rstrip("0").rstrip(".")
+
+
+def row(result, ) -> list[str]:
+    """CSV cells of one :class:`~trackcli.trackers.tracking.FrameResult`."""
+    cells = [str(result.index), f"{result.time:.6f}"]
+    cells += [_fmt(float(v), 8) for v in result.X]
+    cells += [_fmt(float(v), 6) for v in result.X_std]
+    cells += [_fmt(float(result.centroid[0]), 3), _fmt(float(result.centroid[1]), 3)]
+    cells += [_fmt(float(v), 3) for v in result.bbox]
+    cells += [str(result.n_found), str(result.n_normals), _fmt(result.gate_rms, 4), _fmt(result.ess, 6),
+              _fmt(result.loglik, 6), "1" if result.lost else "0",
+              _fmt(float(getattr(result, "confidence", math.nan)), 4), _fmt(float(getattr(result, "log_d", math.nan)), 5)]
+    return cells
+
+
+OUTLINE_CLOSED = "outline_closed"
+
+
+def outline_header(n_points: int) -> list[str]:
+    """Names of the outline columns for ``n_points`` points (empty for 0)."""
+    if n_points <= 0:
+        return []
+    return [OUTLINE_CLOSED, *[f"outline_{a}{i}" for i in range(n_points) for a in "xy"]]
+
+
+@dataclass(frozen=True)
+class OutlineColumns:
+    """Evaluates the ``n_points`` outline points of shape vectors of ``space`` for the CSV.
+
+    Attributes
+    ----------
+    space : ShapeSpace
+        The shape-space of the track (``Q = W X + Q0``).
+    n_points : int
+        P >= 2.
+    """
+
+    space: Any
+    n_points: int
+
+    def __post_init__(self) -> None:
+        if isinstance(self.n_points, bool) or not isinstance(self.n_points, int) or self.n_points < 2:
+            raise InputError(f"outline needs an integer number of points >= 2, got {self.n_points!r}")
+
+    def points(self, X: np.ndarray) -> np.ndarray:
+        """Outline points ``(P, 2)`` of the shape vector ``X`` ``(Nx,)``."""
+        from trackcli.shapes.spline import dense_polygon
+
+        return dense_polygon(self.space.to_control(np.asarray(X, dtype=float)), self.space.basis, self.n_points)
+
+    def header(self) -> list[str]:
+        return outline_header(self.n_points)
+
+    def cells(self, X: np.ndarray) -> list[str]:
+        pts = self.points(X)
+        return ["1" if self.space.basis.closed else "0", *[_fmt(float(v), 3) for v in pts.reshape(-1)]]
+
+
+class TrackWriter:
+    """Write rows as results arrive; the file appears under its final name only on ``close``.
+
+    With ``outline`` (an :class:`OutlineColumns`), every row ends with the outline columns.
+    """
+
+    def __init__(self, path: str | Path, names: Sequence[str], outline: OutlineColumns | None = None):
+        self.path = Path(path)
+        self._outline = outline
+        self._ctx = atomic_path(self.path)
+        tmp = self._ctx.__enter__()
+        self._fh = open(tmp, "w", newline="", encoding="utf-8")
+        self._csv = csv.writer(self._fh)
+        self._csv.writerow(header(names) + (outline.header() if outline else []))
+
+    def write(self, result) -> None:
+        cells = row(result)
+        if self._outline is not None:
+            cells += self._outline.cells(result.X)
+        self._csv.writerow(cells)
+
+    def __enter__(self) -> "TrackWriter":
+        return self
+
+    def __exit__(self, et, ev, tb) -> None:
+        self._fh.close()
+        self._ctx.__exit__(et, ev, tb)
+
+
+def _read_table(path: str | Path) -> tuple[Path, list[list[str]]]:
+    """The rows of a track CSV, header first; one-line errors for a missing, unreadable or foreign file."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{p}: no such track file")
+    try:
+        with open(p, newline="", encoding="utf-8") as fh:
+            rows = list(csv.reader(fh))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{p}: cannot read ({exc})") from None
+    if not rows or "frame" not in rows[0]:
+        raise InputError(f"{p}: not a trackcli track CSV (no 'frame' column in the header)")
+    return p, rows
+
+
+def read_track(path: str | Path, names: Sequence[str] | None = None) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Read ``(frames (T,), X (T, Nx), names)`` from a track CSV.
+
+    If ``names`` is given the file must have exactly those shape components.
+    """
+    p, rows = _read_table(path)
+    head = rows[0]
+    x_cols = [i for i, c in enumerate(head) if c.startswith("X_")]
+    found = [head[i][2:] for i in x_cols]
+    if not x_cols:
+        raise InputError(f"{p}: no shape-vector columns (X_...) in the header")
+    if names is not None and list(names) != found:
+        raise InputError(f"{p}: shape components {found} do not match the shape-space {list(names)}")
+    fi = head.index("frame")
+    frames, X = [], []
+    for k, r in enumerate(rows[1:], 2):
+        if not r:
+            continue
+        try:
+            frames.append(int(r[fi]))
+            X.append([float(r[i]) for i in x_cols])
+        except (ValueError, IndexError):
+            raise InputError(f"{p} line {k}: malformed row") from None
+    if not frames:
+        raise InputError(f"{p}: the track has no rows")
+    return np.asarray(frames), np.asarray(X, dtype=float), found
+
+
+def read_outlines(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Read the outline columns of a track CSV (see the module docstring), by name.
+
+    Returns
+    -------
+    frames : ndarray of shape (T,), int
+    outlines : ndarray of shape (T, P, 2)
+        Outline points; NaN in rows whose outline cells are empty.
+    closed : ndarray of shape (T,), bool
+
+    Raises
+    ------
+    InputError
+        The file is missing or unreadable, has no outline columns (written with
+        ``output.outline_points: 0`` or by an older trackcli), or a cell is not a number.
+    """
+    p, rows = _read_table(path)
+    head = rows[0]
+    col = {name: i for i, name in enumerate(head)}
+    n = 0
+    while f"outline_x{n}" in col and f"outline_y{n}" in col:
+        n += 1
+    if n < 2:
+        raise InputError(f"{p}: no outline columns (outline_x0, outline_y0, ...); re-run `trackcli track` "
+                         "with output.outline_points > 0")
+    idx = [col[f"outline_{a}{i}"] for i in range(n) for a in "xy"]
+    ci = col.get(OUTLINE_CLOSED)
+    frames, outlines, closed = [], [], []
+    for k, r in enumerate(rows[1:], 2):
+        if not r:
+            continue
+        try:
+            frames.append(int(r[col["frame"]]))
+            outlines.append([float(r[i]) if r[i].strip() else math.nan for i in idx])
+            closed.append(ci is None or r[ci].strip() != "0")
+        except (ValueError, IndexError):
+            raise InputError(f"{p} line {k}: malformed outline cells") from None
+    if not frames:
+        raise InputError(f"{p}: the track has no rows")
+    return np.asarray(frames), np.asarray(outlines, dtype=float).reshape(len(frames), n, 2), np.asarray(closed)
+
+
+def write_rows(path: str | Path, names: Sequence[str], results: Iterable) -> Path:
+    """Write all ``results`` at once."""
+    with TrackWriter(path, names) as w:
+        for r in results:
+            w.write(r)
+    return Path(path)
+
+
+def read_track_uncertainty(path: str | Path, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Read ``(std (T, Nx), lost (T,) bool)`` from a track CSV with shape components ``names``.
+
+    Empty or missing ``std_`` cells read as NaN; a missing ``lost`` column as never lost.
+    """
+    p = Path(path)
+    read_track(p, names)  # the same checks of file, header and rows
+    _, rows = _read_table(p)
+    rows = [r for r in rows if r]
+    head = rows[0]
+    missing = [f"std_{n}" for n in names if f"std_{n}" not in head]
+    if missing:
+        raise InputError(f"{p}: no uncertainty columns {', '.join(missing)} in the header")
+    cols = [head.index(f"std_{n}") for n in names]
+    li = head.index("lost") if "lost" in head else None
+    std = np.full((len(rows) - 1, len(cols)), np.nan)
+    lost = np.zeros(len(rows) - 1, dtype=bool)
+    for k, r in enumerate(rows[1:]):
+        try:
+            std[k] = [float(r[i]) if r[i].strip() else np.nan for i in cols]
+            lost[k] = li is not None and r[li].strip() not in ("", "0")
+        except (ValueError, IndexError):
+            raise InputError(f"{p} line {k + 2}: malformed row") from None
+    return std, lost

@@ -1,0 +1,546 @@
+"""Frames in: video files and image-sequence folders.
+
+Every frame trackcli looks at enters through :func:`open_video`; this is the only module
+that reads video or images with OpenCV.  A :class:`Video` streams frames one at a time, so
+memory stays flat whatever the clip length, and reads one frame at random for tasks such
+as drawing a template on frame ``k``.
+
+Sources
+-------
+- A **video file**: anything OpenCV's FFmpeg backend decodes (MP4, AVI, MKV, ...).
+- An **image folder**: the ``*.jpg``, ``*.jpeg`` and ``*.png`` files in it (case-insensitive,
+  names starting with ``.`` ignored), in natural order (``2.png`` before ``10.png``).  A folder
+  without images but with an ``img/`` sub-folder is read from there: the common tracking
+  benchmark layout ``CLIP/img/0001.jpg`` (with ``CLIP/groundtruth_rect.txt`` beside it).
+  Folders have no frame rate: pass ``fps``, or 25 fps is assumed with a warning.
+
+Frames
+------
+A :class:`Frame` carries its *original* index in the clip, its time ``index / fps`` in
+seconds, and the image as a BGR ``uint8`` array of shape ``(H, W, 3)`` (grey images are
+converted to BGR).  Selecting frames with ``start``, ``end`` and ``step`` keeps those original
+indices and times, so results can always be matched back to the clip.
+
+Frame counts of video files
+---------------------------
+Containers report a frame count that may be wrong.  A file is therefore read until decoding
+fails, and the failure is interpreted as follows:
+
+- if a later frame still decodes, the frame is corrupt: :class:`~trackcli.errors.VideoError`
+  naming the frame;
+- if nothing decodes after it and at most :data:`END_SLACK` frames are missing from the
+  reported count (or more frames than reported were read), it is the normal end of the clip;
+- otherwise the file is truncated or corrupt: :class:`~trackcli.errors.VideoError`.
+
+When the selection reaches the reported count (``end`` None or beyond it), iteration runs to
+the true end of the stream, which may yield a few frames more or fewer than ``len(video)``; ``n_total``, ``indices`` and ``len`` are the best count
+known when the clip is opened.  A file reporting no count at all is counted once, when
+opened, by grabbing every frame.  Folders are exact: one image is one frame.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import operator
+import os
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import cv2
+import numpy as np
+
+from trackcli.errors import ConfigError, VideoError
+
+log = logging.getLogger(__name__)
+
+# Decoder chatter ("moov atom not found", "[ WARN...] cap.cpp ...") would print before
+# trackcli's own one-line message about the same file.  Quiet by default; setting the
+# variables in the environment shows it again.
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET, read when FFmpeg is first used
+if "OPENCV_LOG_LEVEL" not in os.environ:
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
+
+#: Suffixes (lower case) of the images read from a folder.
+IMAGE_SUFFIXES: tuple[str, ...] = (".jpg", ".jpeg", ".png")
+
+#: Frame rate assumed for an image folder when none is given.
+DEFAULT_FPS: float = 25.0
+
+#: Frames a video file may fall short of its reported count and still be complete.
+END_SLACK: int = 2
+
+# After a failed decode, how many further grabs decide "corrupt frame" versus "end of stream".
+_PROBE_GRABS = 3
+
+# Codecs (as OpenCV reports FOURCC, compared in lower case) that Rerun's AssetVideo plays
+# from an MP4 container: H.264, VP9 and AV1.
+_RERUN_CODECS = frozenset({"avc1", "h264", "x264", "vp09", "vp90", "av01"})
+
+
+@dataclass(frozen=True, eq=False)
+class Frame:
+    """One frame of a clip.
+
+    Attributes
+    ----------
+    index : int
+        Original frame number in the clip (0-based), whatever frames were selected.
+    time : float
+        Seconds from the start of the clip, ``index / fps``.
+    image : ndarray of shape (H, W, 3), dtype uint8
+        The picture in BGR channel order.
+    """
+
+    index: int
+    time: float
+    image: np.ndarray
+
+
+class Video:
+    """A clip opened for streaming and random access; create it with :func:`open_video`.
+
+    Iterating yields the selected frames in order, decoding one at a time; each iteration
+    starts afresh.  :meth:`read` fetches any frame of the clip by its original index.  Use
+    the object as a context manager (or call :meth:`close`) to release the decoder held for
+    random access.  Attributes are read-only.
+
+    Attributes
+    ----------
+    path : Path
+        The file or folder as given to :func:`open_video`.
+    kind : {"file", "folder"}
+        A video file or an image folder.
+    fps : float
+        Frames per second, used for frame times.
+    width, height : int
+        Frame size in pixels.
+    n_total : int
+        Frames in the whole clip (exact for folders; the best known count for files).
+    indices : range
+        Original indices of the selected frames.
+    """
+
+    def __init__(
+        self,
+        *,
+        path: Path,
+        kind: Literal["file", "folder"],
+        fps: float,
+        width: int,
+        height: int,
+        n_total: int,
+        indices: range,
+        end: int | None,
+        images: tuple[Path, ...] = (),
+        fourcc: str = "",
+    ) -> None:
+        self.path = path
+        self.kind = kind
+        self.fps = fps
+        self.width = width
+        self.height = height
+        self.n_total = n_total
+        self.indices = indices
+        self._end = end  # as requested, unclamped: files read on to the true end when None
+        self._images = images
+        self._fourcc = fourcc
+        self._reader: cv2.VideoCapture | None = None
+        self._reader_next = 0  # index the random-access reader decodes next
+        self._closed = False
+
+    # -- container protocol ---------------------------------------------------------------
+
+    def __len__(self) -> int:
+        return len(self.indices)
+
+    def __iter__(self) -> Iterator[Frame]:
+        self._check_open()
+        if self.kind == "folder":
+            return self._iter_folder()
+        return self._iter_file()
+
+    def __enter__(self) -> Video:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        r = self.indices
+        return (
+            f"Video({str(self.path)!r}, kind={self.kind!r}, {self.width}x{self.height}, "
+            f"fps={self.fps:g}, n_total={self.n_total}, "
+            f"indices=range({r.start}, {r.stop}, {r.step}))"
+        )
+
+    def close(self) -> None:
+        """Release the random-access decoder; the video cannot be used afterwards."""
+        if self._reader is not None:
+            self._reader.release()
+            self._reader = None
+        self._closed = True
+
+    # -- public queries -------------------------------------------------------------------
+
+    def read(self, index: int) -> Frame:
+        """Decode one frame by its original index in the clip.
+
+        Parameters
+        ----------
+        index : int
+            Frame number, ``0 <= index < n_total``; it need not be among ``indices``.
+
+        Returns
+        -------
+        Frame
+            The frame, its image of shape ``(height, width, 3)``.
+
+        Raises
+        ------
+        ConfigError
+            If ``index`` is not an integer in range.
+        VideoError
+            If the frame cannot be decoded.
+        """
+        self._check_open()
+        index = _as_int("index", index)
+        if not 0 <= index < self.n_total:
+            raise ConfigError(
+                f"frame index {index} is out of range for {self.path}: "
+                f"valid 0..{self.n_total - 1}"
+            )
+        if self.kind == "folder":
+            return self._frame(index, self._load_image(index))
+        if self._reader is None:
+            self._reader = _open_capture(self.path)
+            self._reader_next = 0
+        if index != self._reader_next:
+            self._reader.set(cv2.CAP_PROP_POS_FRAMES, index)
+        ok, image = self._reader.read()
+        if not ok:
+            self._reader_next = -1  # position unknown: seek next time
+            raise VideoError(f"{self.path}: cannot decode frame {index}")
+        self._reader_next = index + 1
+        return self._frame(index, _as_bgr(image, f"{self.path} frame {index}"))
+
+    @property
+    def codec(self) -> str:
+        """The video codec of a file as a lower-case FOURCC (``"vp09"``, ``"avc1"``, ``"av01"``); empty for folders."""
+        return self._fourcc.strip().lower()
+
+    @property
+    def whole_clip(self) -> bool:
+        """Whether the selection is every frame of the clip (no start, end or step)."""
+        return self.indices == range(0, self.n_total, 1)
+
+    def is_rerun_video_asset(self) -> bool:
+        """Whether Rerun can play the file itself as a video asset.
+
+        True for an MP4 file (``.mp4`` suffix and an ISO-BMFF ``ftyp`` box) whose video codec is
+        H.264 (``avc1``), VP9 (``vp09``) or AV1 (``av01``); Rerun's ``AssetVideo`` rejects other codecs (e.g.
+        ``mp4v``) and other containers (AVI, MKV).  Always False for image folders.
+        """
+        if self.kind != "file" or self.path.suffix.lower() != ".mp4":
+            return False
+        if self._fourcc.strip().lower() not in _RERUN_CODECS:
+            return False
+        try:
+            with self.path.open("rb") as fh:
+                head = fh.read(12)
+        except OSError:
+            return False
+        return head[4:8] == b"ftyp"
+
+    # -- streaming ------------------------------------------------------------------------
+
+    def _frame(self, index: int, image: np.ndarray) -> Frame:
+        if image.shape[:2] != (self.height, self.width):
+            h, w = image.shape[:2]
+            where = self._images[index] if self.kind == "folder" else self.path
+            raise VideoError(
+                f"{where}: frame {index} is {w}x{h} but the clip is "
+                f"{self.width}x{self.height}; all frames must have the same size"
+            )
+        return Frame(index=index, time=index / self.fps, image=image)
+
+    def _iter_folder(self) -> Iterator[Frame]:
+        for index in self.indices:
+            yield self._frame(index, self._load_image(index))
+
+    def _load_image(self, index: int) -> np.ndarray:
+        return _read_image(self._images[index], index)
+
+    def _iter_file(self) -> Iterator[Frame]:
+        start, step, stop = self.indices.start, self.indices.step, self._end
+        cap = _open_capture(self.path)
+        try:
+            if start > 0:
+                cap.set(cv2.CAP_PROP_POS_FRAMES, start)
+            position = start  # index of the frame the capture delivers next
+            index = start
+            while stop is None or index < stop:
+                while position < index:  # skipped by `step`: demux and decode, no conversion
+                    if not cap.grab():
+                        self._stream_ended(cap, position)
+                        return
+                    position += 1
+                ok, image = cap.read()
+                if not ok:
+                    self._stream_ended(cap, position)
+                    return
+                position += 1
+                yield self._frame(index, _as_bgr(image, f"{self.path} frame {index}"))
+                index += step
+        finally:
+            cap.release()
+
+    def _stream_ended(self, cap: cv2.VideoCapture, index: int) -> None:
+        """Decide whether a failed decode at ``index`` is the end of the clip or an error."""
+        for _ in range(_PROBE_GRABS):
+            if cap.grab():
+                raise VideoError(
+                    f"{self.path}: cannot decode frame {index} (corrupt data; later frames "
+                    f"decode)"
+                )
+        if index < self.n_total - END_SLACK:
+            raise VideoError(
+                f"{self.path}: decoding stops at frame {index} but the file reports "
+                f"{self.n_total} frames (truncated or corrupt; end={index} reads the frames "
+                f"before it)"
+            )
+        if index != self.n_total:
+            log.info("%s: stream ends at frame %d; the file reports %d", self.path, index,
+                     self.n_total)
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise ValueError(f"video {self.path} is closed")
+
+
+def open_video(
+    path: str | Path,
+    *,
+    fps: float | None = None,
+    start: int = 0,
+    end: int | None = None,
+    step: int = 1,
+) -> Video:
+    """Open a video file or an image folder for reading.
+
+    Parameters
+    ----------
+    path : str or Path
+        A video file, a folder of images, or a benchmark clip folder holding ``img/``.
+    fps : float, optional
+        Frames per second.  Overrides the rate a file reports; for a folder, 25 fps is
+        assumed (with a warning) when it is not given.
+    start : int, default 0
+        First original index selected (inclusive); must lie inside the clip.
+    end : int, optional
+        Original index where the selection stops (exclusive); None reads to the end.
+        An ``end`` beyond the clip is cut to the clip, as in slicing.
+    step : int, default 1
+        Take every ``step``-th frame from ``start``.
+
+    Returns
+    -------
+    Video
+        The opened clip.  The first frame has been decoded to check the source.
+
+    Raises
+    ------
+    VideoError
+        If the path is missing, unreadable, not a decodable video, an empty video, or a
+        folder without images.
+    ConfigError
+        If ``fps``, ``start``, ``end`` or ``step`` is invalid.
+    """
+    path = Path(path)
+    start = _as_int("start", start)
+    step = _as_int("step", step)
+    if end is not None:
+        end = _as_int("end", end)
+    if start < 0:
+        raise ConfigError(f"start must be >= 0, got {start}")
+    if step < 1:
+        raise ConfigError(f"step must be >= 1, got {step}")
+    if end is not None and end <= start:
+        raise ConfigError(f"end ({end}) must be greater than start ({start})")
+    if fps is not None:
+        fps = _check_fps(fps)
+
+    if not path.exists():
+        raise VideoError(f"{path}: no such file or folder")
+    if path.is_dir():
+        video = _open_folder(path, fps, end)
+    else:
+        video = _open_file(path, fps, end)
+
+    if start >= video.n_total:
+        raise ConfigError(
+            f"start ({start}) is beyond the end of {path}, which has {video.n_total} frames "
+            f"(valid 0..{video.n_total - 1})"
+        )
+    stop = video.n_total if end is None else min(end, video.n_total)
+    video.indices = range(start, stop, step)
+    return video
+
+
+# -- opening ------------------------------------------------------------------------------
+
+
+def _open_folder(path: Path, fps: float | None, end: int | None) -> Video:
+    images = _list_images(path)
+    if not images and (path / "img").is_dir():
+        images = _list_images(path / "img")
+    if not images:
+        others = sum(1 for p in path.iterdir() if not p.name.startswith("."))
+        found = f"; found {others} other entr{'y' if others == 1 else 'ies'}" if others else ""
+        raise VideoError(
+            f"{path}: no images ({', '.join('*' + s for s in IMAGE_SUFFIXES)}) in the folder "
+            f"or in its img/ sub-folder{found}"
+        )
+    if fps is None:
+        log.warning("%s: an image folder has no frame rate; assuming %g fps", path,
+                    DEFAULT_FPS)
+        fps = DEFAULT_FPS
+    first = _read_image(images[0], 0)
+    height, width = first.shape[:2]
+    return Video(
+        path=path, kind="folder", fps=fps, width=width, height=height,
+        n_total=len(images), indices=range(0), end=end, images=tuple(images),
+    )
+
+
+def _open_file(path: Path, fps: float | None, end: int | None) -> Video:
+    if not path.is_file():
+        raise VideoError(f"{path}: not a regular file or folder")
+    try:
+        with path.open("rb"):
+            pass
+    except OSError as exc:
+        raise VideoError(f"{path}: cannot read the file ({exc.strerror})") from None
+    cap = _open_capture(path)
+    try:
+        reported = cap.get(cv2.CAP_PROP_FRAME_COUNT)
+        file_fps = cap.get(cv2.CAP_PROP_FPS)
+        fourcc = _fourcc_text(cap.get(cv2.CAP_PROP_FOURCC))
+        ok, first = cap.read()
+        if not ok:
+            raise VideoError(f"{path}: no frame can be decoded (empty or corrupt video)")
+        first = _as_bgr(first, f"{path} frame 0")
+        if math.isfinite(reported) and reported >= 1:
+            n_total = int(round(reported))
+        else:
+            n_total = 1
+            while cap.grab():
+                n_total += 1
+            log.info("%s: the file reports no frame count; counted %d frames", path, n_total)
+    finally:
+        cap.release()
+
+    if fps is None:
+        if math.isfinite(file_fps) and file_fps > 0:
+            fps = float(file_fps)
+        else:
+            log.warning("%s: the file reports no frame rate; assuming %g fps", path,
+                        DEFAULT_FPS)
+            fps = DEFAULT_FPS
+    height, width = first.shape[:2]
+    return Video(
+        path=path, kind="file", fps=fps, width=width, height=height, n_total=n_total,
+        indices=range(0), end=end, fourcc=fourcc,
+    )
+
+
+def _open_capture(path: Path) -> cv2.VideoCapture:
+    """Open ``path`` with the FFmpeg backend, falling back to any backend OpenCV has."""
+    for api in (cv2.CAP_FFMPEG, cv2.CAP_ANY):
+        cap = cv2.VideoCapture(str(path), api)
+        if cap.isOpened():
+            return cap
+        cap.release()
+    raise VideoError(
+        f"{path}: cannot open as a video (not a video file, or an unsupported format)"
+    )
+
+
+def _list_images(folder: Path) -> list[Path]:
+    images = [
+        p for p in folder.iterdir()
+        if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".") and p.is_file()
+    ]
+    images.sort(key=_natural_key)
+    return images
+
+
+_DIGITS = re.compile(r"(\d+)", re.ASCII)
+
+
+def _natural_key(p: Path) -> tuple[tuple[str | int, ...], str]:
+    """Sort key putting ``img2.png`` before ``img10.png``; ties broken by the plain name."""
+    parts = _DIGITS.split(p.name.lower())
+    # re.split with one group alternates text (even positions) and digit runs (odd positions),
+    # so tuples compare str with str and int with int.
+    return tuple(int(t) if i % 2 else t for i, t in enumerate(parts)), p.name
+
+
+# -- decoding helpers ---------------------------------------------------------------------
+
+
+def _read_image(file: Path, index: int) -> np.ndarray:
+    """Decode an image file to BGR uint8 of shape ``(H, W, 3)``."""
+    try:
+        data = np.frombuffer(file.read_bytes(), dtype=np.uint8)
+    except OSError as exc:
+        raise VideoError(f"{file}: cannot read image for frame {index} ({exc.strerror})") from None
+    image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+    if image is None:
+        raise VideoError(
+            f"{file}: cannot decode image for frame {index} (corrupt or not an image)"
+        )
+    return _as_bgr(image, f"{file} (frame {index})")
+
+
+def _as_bgr(image: np.ndarray, what: str) -> np.ndarray:
+    """Return ``image`` as BGR uint8 ``(H, W, 3)``, converting grey or BGRA."""
+    if image.dtype != np.uint8:
+        raise VideoError(f"{what}: unsupported pixel type {image.dtype}; expected 8-bit")
+    if image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 1):
+        return cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+    if image.ndim == 3 and image.shape[2] == 4:
+        return cv2.cvtColor(image, cv2.COLOR_BGRA2BGR)
+    if image.ndim == 3 and image.shape[2] == 3:
+        return image
+    raise VideoError(f"{what}: unsupported image shape {image.shape}")
+
+
+def _fourcc_text(code: float) -> str:
+    """Four-character codec code from OpenCV's numeric CAP_PROP_FOURCC ('' if none)."""
+    if not math.isfinite(code) or not 0 < code < 2**32:
+        return ""
+    raw = int(code).to_bytes(4, "little", signed=False)
+    return raw.decode("ascii", errors="replace") if all(32 <= b < 127 for b in raw) else ""
+
+
+def _as_int(name: str, value: object) -> int:
+    if isinstance(value, bool):
+        raise ConfigError(f"{name} must be an integer, got {value!r}")
+    try:
+        return operator.index(value)
+    except TypeError:
+        raise ConfigError(f"{name} must be an integer, got {value!r}") from None
+
+
+def _check_fps(fps: object) -> float:
+    try:
+        value = float(fps)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ConfigError(f"fps must be a positive number, got {fps!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise ConfigError(f"fps must be a positive number, got {fps!r}")
+    return value

@@ -1,0 +1,12 @@
+"""Observation: features along the measurement normals and the likelihoods built on them.
+
+- :mod:`.measure` — the feature image, the search for edge features along each normal
+  (AC §5.3, the Kalman tracker's nearest feature), their aggregation into the information
+  form ``Z, S`` (AC Fig 10.3), the clutter likelihood of CONDENSATION (AC eq 12.2,
+  :func:`.measure.log_likelihood`) and the truncated Gaussian of Isard & Blake 1996
+  (eqs 10–11, :func:`.measure.truncated_log_likelihood`).
+- :mod:`.discriminant` — the contour discriminant of MacCormick & Blake (a likelihood
+  ratio per normal, object against clutter), the appearance learned on the first frame
+  (edge polarity per normal, colour), the confidence, and the colour proposal for
+  re-acquisition by importance sampling.
+"""

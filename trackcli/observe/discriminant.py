@@ -1,0 +1,439 @@
+"""The default observation model: a contour discriminant with appearance learned on the first frame.
+
+The clutter density of AC eq 12.2 scores a hypothesised curve by how many edges lie near it,
+so a curve in dense texture scores as well as the object.  This module replaces it by a
+likelihood *ratio* — "the object's boundary is here" against "there is only background here" —
+in the spirit of the contour discriminant of MacCormick & Blake (001 §3), and adds two cues
+learned from the template on the first frame, both read along the same normals.
+
+Edges: the discriminant per normal
+----------------------------------
+Along normal ``i`` the features (:mod:`trackcli.observe.measure`) on the segment ``[-h, h]`` are
+modelled, under the *background* hypothesis, as a Poisson process of density ``λ`` per pixel
+(the clutter density, estimated on every frame from the image around the object) and, under
+the *object* hypothesis, as: the boundary at offset ``ν ~ N(0, σ²)``, missed with probability
+``q`` (occlusion, low contrast); Poisson features of density ``λ_in`` on the interior part
+``[-h, 0)`` (learned from the object on the first frame); density ``λ`` on the exterior part.
+The ratio of the two densities of the features observed is
+
+    D_i = exp(h (λ - λ_in)) (λ_in / λ)^{n_in} [ q + (1 - q) Σ_m g(ν_m) / λ(ν_m) ],
+
+``g`` the Gaussian density of the boundary's offset, ``n_in`` the number of interior features
+and ``λ(ν) = λ_in`` inside, ``λ`` outside.  ``log D_i > 0`` means normal ``i`` looks more like
+the object's boundary than like clutter; ``log D = Σ_i log D_i`` has that meaning for the whole
+curve.  An edge inside a smooth object counts against a curve (the interior term), and a curve
+placed in dense texture gains little, because every feature is divided by the density of
+features there.
+
+Polarity per normal: on the first frame, the sign of the intensity change across the
+template's outline is measured at each normal (a head is darker than the wall on one side and
+lighter on another).  Where it is clear, only features of that sign count on that normal, and
+the clutter densities are halved accordingly (texture has both signs in equal measure); where
+it is not, features of either sign count.
+
+Colour: foreground against background
+-------------------------------------
+A histogram of the pixels inside the template (foreground) and one of the background (an even
+mixture of a ring around the template and the rest of the frame), in HSV with 8 hue × 8
+saturation × 4 value bins (hue and saturation carry most of the information and change little
+with lighting; the coarse value bins separate dark from light greys, whose hue is
+meaningless; 256 bins in all, so that mapping a frame is a byte lookup), give the log-ratio
+``L(c) = log p_fg(c) / p_bg(c)``, clipped to ``[-3, 3]``.  Every frame is mapped to ``L`` once (a back-projection), and along
+each normal ``L`` is averaged at a few offsets inside and outside the curve; the colour term of
+normal ``i`` is ``c_i = (mean_inside L - mean_outside L) / 2``, in ``[-3, 3]``: positive when
+the curve separates object-coloured from background-coloured pixels.  The models are kept as
+learned on the first frame (no update), so they cannot drift onto the background.
+
+The log-likelihood of a curve
+-----------------------------
+    log p(Z | X) = Σ_i [ log D_i + w_c c_i ]   (+ a constant),
+
+``w_c`` = ``condensation.colour_weight``.  The *presence score* of a curve is the same sum
+divided by the number of normals: the average evidence per normal that the object is there.
+It does not vanish when every sample of a particle set is wrong — a curve on background has a
+score near or below zero whatever the other samples see — and is what the trackers' confidence
+and ``lost`` verdict are computed from (:func:`confidence`).
+
+Re-acquisition
+--------------
+While the tracker is lost, :func:`colour_peaks` finds object-coloured regions of the object's
+size anywhere in the frame and :func:`reacquisition_proposal` draws a share of the samples
+there, with the importance weights that keep the set a fair sample of the posterior (Isard &
+Blake's ICONDENSATION).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from trackcli.errors import DataError
+from trackcli.observe.measure import _as_image, _as_normals, _remap_rows, _scan_chunks
+
+__all__ = ["Appearance", "FrameEvidence", "colour_peaks", "confidence", "evidence", "feature_density", "hsv_bins",
+           "learn_appearance", "per_normal", "presence", "reacquisition_proposal", "score"]
+
+#: HSV histogram bins (hue, saturation, value).
+HIST_BINS = (8, 8, 4)
+#: Clip of the colour log-ratio.
+COLOUR_CLIP = 3.0
+#: Smallest clutter density used, features per pixel (a clean background has almost none).
+MIN_DENSITY = 0.002
+# Offsets of the colour samples along a normal, as fractions of the object's size.
+_COLOUR_FRACTIONS = (0.04, 0.08, 0.13, 0.2)
+
+
+@dataclass(frozen=True, eq=False)
+class Appearance:
+    """What the object looks like, learned from the template on its first frame.
+
+    Attributes
+    ----------
+    polarity : ndarray of shape (M,), int8
+        Per normal: +1 dark-to-light along the outward normal, -1 light-to-dark, 0 unclear.
+    lambda_in : float
+        Density of features inside the object, per pixel of normal (any sign).
+    lut : ndarray of shape (prod(HIST_BINS),), float32
+        The colour log-ratio ``L`` of every HSV bin.
+    size : float
+        The object's size, the square root of the template's area, px.
+    colour_offsets : ndarray of shape (K,), float32
+        Positive offsets (px) of the colour samples along each normal.
+    """
+
+    polarity: np.ndarray
+    lambda_in: float
+    lut: np.ndarray
+    size: float
+    colour_offsets: np.ndarray
+
+    def colour_map(self, frame_bgr: np.ndarray) -> np.ndarray:
+        """The colour log-ratio ``L`` of every pixel of a frame: float32 (H, W) in [-3, 3]."""
+        return cv2.LUT(hsv_bins(frame_bgr), self.lut.reshape(1, -1))
+
+
+@dataclass(frozen=True, eq=False)
+class FrameEvidence:
+    """One frame's images for the observation model."""
+
+    fimg: np.ndarray
+    """Feature image (:func:`trackcli.observe.measure.feature_image`)."""
+    cmap: np.ndarray
+    """Colour log-ratio of every pixel (:meth:`Appearance.colour_map`)."""
+    density: float
+    """Clutter density ``λ`` around the object, features (of any sign) per pixel."""
+
+
+# One table for the three 8-bit HSV channels (hue 0-179): each channel's share of the flat bin
+# index of HIST_BINS, which fits a byte (prod(HIST_BINS) == 256), so that the whole mapping is
+# two cv2.LUT calls and one cv2.transform per frame.
+_BIN_TABLE = np.zeros((1, 256, 3), np.uint8)
+_BIN_TABLE[0, :, 0] = ((np.arange(256) * HIST_BINS[0]) // 180).clip(max=HIST_BINS[0] - 1) * (HIST_BINS[1] * HIST_BINS[2])
+_BIN_TABLE[0, :, 1] = ((np.arange(256) * HIST_BINS[1]) // 256) * HIST_BINS[2]
+_BIN_TABLE[0, :, 2] = (np.arange(256) * HIST_BINS[2]) // 256
+_SUM_CHANNELS = np.ones((1, 3), np.float32)
+
+
+def hsv_bins(frame_bgr: np.ndarray) -> np.ndarray:
+    """Flat HSV histogram bin of every pixel: uint8 (H, W) in ``[0, prod(HIST_BINS))``."""
+    hsv = cv2.cvtColor(_bgr(frame_bgr), cv2.COLOR_BGR2HSV)
+    return cv2.transform(cv2.LUT(hsv, _BIN_TABLE), _SUM_CHANNELS)
+
+
+def _bgr(frame: np.ndarray) -> np.ndarray:
+    f = np.asarray(frame)
+    if f.ndim == 2:
+        f = cv2.cvtColor(f.astype(np.uint8, copy=False), cv2.COLOR_GRAY2BGR)
+    if f.ndim != 3 or f.shape[2] != 3:
+        raise DataError(f"frame: expected an (H, W, 3) BGR image, got shape {f.shape}")
+    return f if f.dtype == np.uint8 else np.clip(f, 0, 255).astype(np.uint8)
+
+
+def feature_density(fimg: np.ndarray, centre: np.ndarray, size: float, threshold: float, *, stride: int = 3) -> float:
+    """Features per pixel along rows and columns of ``fimg`` near ``centre``.
+
+    A feature is counted as the scanner of :mod:`trackcli.observe.measure` finds one: a local maximum
+    of ``|D|`` (the difference of neighbouring pixels of the smoothed image) at least
+    ``threshold``.  Every ``stride``-th row and column of a window of ``5 size`` around
+    ``centre`` (clipped to the image) is scanned.
+    """
+    img = _as_image(fimg)
+    h, w = img.shape
+    half = 2.5 * size
+    cx, cy = float(centre[0]), float(centre[1])
+    if not (math.isfinite(cx) and math.isfinite(cy)):
+        cx, cy = w / 2, h / 2
+    x0, x1 = int(max(0, cx - half)), int(min(w, cx + half))
+    y0, y1 = int(max(0, cy - half)), int(min(h, cy + half))
+    if x1 - x0 < 8 or y1 - y0 < 8:
+        x0, x1, y0, y1 = 0, w, 0, h
+    win = img[y0:y1, x0:x1]
+    count = 0
+    length = 0
+    for lines in (win[::stride, :], win[:, ::stride].T):
+        d = np.abs(np.diff(lines, axis=1))
+        if d.shape[1] < 3:
+            continue
+        mid = d[:, 1:-1]
+        peak = (mid > d[:, :-2]) & (mid >= d[:, 2:]) & (mid >= threshold)
+        count += int(peak.sum())
+        length += mid.size
+    return max(count / max(length, 1), MIN_DENSITY)
+
+
+def _colour_model(frame_bgr: np.ndarray, polygon: np.ndarray, size: float) -> np.ndarray:
+    """Colour log-ratio per HSV bin: the pixels inside ``polygon`` against the background."""
+    img = _bgr(frame_bgr)
+    h, w = img.shape[:2]
+    bins = hsv_bins(img).reshape(-1)
+    inside = np.zeros((h, w), np.uint8)
+    cv2.fillPoly(inside, [np.round(polygon).astype(np.int32)], 1)
+    gap = max(2, int(round(0.05 * size)))
+    ring_w = max(6, int(round(0.5 * size)))
+    near = cv2.dilate(inside, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * gap + 1, 2 * gap + 1)))
+    far = cv2.dilate(inside, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * ring_w + 1, 2 * ring_w + 1)))
+    core = cv2.erode(inside, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * gap + 1, 2 * gap + 1)))
+    if core.sum() < 20:
+        core = inside
+    ring = far & (1 - near)
+    rest = 1 - near
+    n = int(np.prod(HIST_BINS))
+    fg, bg_ring, bg_all = (np.bincount(bins[m.reshape(-1) > 0], minlength=n).astype(np.float64)
+                           for m in (core, ring, rest))
+    nbins = float(n)
+    # add-a-half smoothing (a Dirichlet prior) keeps unseen colours neutral rather than infinite
+    pf = (fg + 0.5) / (fg.sum() + 0.5 * nbins)
+    # background: half the ring around the object (what it must be told from where it is),
+    # half the rest of the frame (what it may meet later, e.g. letterbox bars, other regions)
+    pb = 0.5 * (bg_ring + 0.5) / (bg_ring.sum() + 0.5 * nbins) + 0.5 * (bg_all + 0.5) / (bg_all.sum() + 0.5 * nbins)
+    return np.clip(np.log(pf / pb), -COLOUR_CLIP, COLOUR_CLIP).astype(np.float32)
+
+
+def learn_appearance(frame_bgr: np.ndarray, fimg: np.ndarray, points: np.ndarray, normals: np.ndarray,
+                     polygon: np.ndarray, *, h: float, sigma: float, threshold: float) -> Appearance:
+    """Learn polarity per normal, interior feature density and colour from the template.
+
+    Parameters
+    ----------
+    frame_bgr : ndarray (H, W, 3)
+        The frame the tracker starts on.
+    fimg : ndarray (H, W)
+        Its feature image.
+    points, normals : ndarray of shape (M, 2)
+        Measurement points and outward normals of the template on that frame.
+    polygon : ndarray of shape (P, 2)
+        Dense outline of the template (for the colour regions and the size).
+    h, sigma, threshold : float
+        Search half-width, boundary spread and contrast threshold of the discriminant.
+    """
+    img = _as_image(fimg)
+    pts, nrm, lead = _as_normals(points, normals)
+    m = pts.shape[0]
+    area = abs(float(cv2.contourArea(np.asarray(polygon, dtype=np.float32))))
+    size = max(math.sqrt(area), 4.0)
+    # Polarity: the signed difference across the outline, the strongest within +-2 sigma.
+    u = np.arange(-math.ceil(2 * sigma) - 0.5, math.ceil(2 * sigma) + 1.0, 1.0, dtype=np.float32)
+    prof = _remap_rows(img, pts.astype(np.float32), nrm.astype(np.float32), u)
+    d = prof[:, 1:] - prof[:, :-1]
+    best = d[np.arange(m), np.argmax(np.abs(d), axis=1)]
+    polarity = np.where(np.abs(best) >= threshold, np.sign(best), 0).astype(np.int8)
+    # Interior density: features on [-h, -2 sigma] of the template's normals, shrunk towards
+    # the clutter density around it by a prior worth 2 px per normal.
+    inner = 0
+    for _, _, _r, nu, _s in _scan_chunks(img, pts, nrm, float(h), threshold, 0):
+        inner += int(np.count_nonzero(nu < -2 * sigma))
+    length = m * max(h - 2 * sigma, 1.0)
+    centre = np.asarray(polygon, dtype=float).mean(axis=0)
+    lam = feature_density(img, centre, size, threshold)
+    lambda_in = max((inner + lam * 2 * m) / (length + 2 * m), MIN_DENSITY)
+    offsets = np.unique(np.maximum(1.5, np.round(np.array(_COLOUR_FRACTIONS) * size))).astype(np.float32)
+    return Appearance(polarity=polarity, lambda_in=float(lambda_in), lut=_colour_model(frame_bgr, polygon, size),
+                      size=size, colour_offsets=offsets)
+
+
+def evidence(app: Appearance, frame_bgr: np.ndarray, fimg: np.ndarray, centre: np.ndarray, threshold: float) -> FrameEvidence:
+    """The per-frame images of the observation model (one back-projection, one density)."""
+    return FrameEvidence(fimg=_as_image(fimg), cmap=app.colour_map(frame_bgr),
+                         density=feature_density(fimg, centre, app.size, threshold))
+
+
+def per_normal(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float,
+               sigma: float, threshold: float, miss: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(log D_i, c_i)`` of every normal of every curve, each of the leading shape (..., M)."""
+    pts, nrm, lead = _as_normals(points, normals)
+    m = app.polarity.size
+    if not lead or lead[-1] != m:
+        raise DataError(f"points: expected shape (..., {m}, 2) for {m} normals, got {lead + (2,)}")
+    k_total = pts.shape[0]
+    pol_all = np.tile(app.polarity, k_total // m)
+    # per normal: the densities of features of the accepted polarity, outside and inside
+    half = np.where(pol_all != 0, 0.5, 1.0)
+    lam_out = ev.density * half
+    lam_in = app.lambda_in * half
+    log_ratio_in = np.log(lam_in / lam_out)
+    base = h * (lam_out - lam_in)
+    c = (1.0 - miss) / (math.sqrt(2.0 * math.pi) * sigma)
+    inv_out = (c / lam_out).astype(np.float32)
+    inv_in = (c / lam_in).astype(np.float32)
+    scale = np.float32(-0.5 / sigma**2)
+    log_d = np.empty(k_total)
+    for k0, k1, row, nu, _s, sgn in _scan_chunks(ev.fimg, pts, nrm, float(h), threshold, 0, with_sign=True):
+        pol = pol_all[k0:k1][row]
+        keep = (pol == 0) | (sgn == pol)  # on each normal, features of its polarity only
+        row, nu = row[keep], nu[keep]
+        inside = nu < 0
+        g = np.exp(nu * nu * scale)
+        g *= np.where(inside, inv_in[k0:k1][row], inv_out[k0:k1][row])
+        total = np.bincount(row, weights=g, minlength=k1 - k0)
+        n_in = np.bincount(row[inside], minlength=k1 - k0)
+        log_d[k0:k1] = base[k0:k1] + n_in * log_ratio_in[k0:k1] + np.log(miss + total)
+    # colour: the log-ratio map sampled inside (-offsets) and outside (+offsets) every normal
+    offs = app.colour_offsets
+    u = np.concatenate([-offs[::-1], offs])
+    colour = np.empty(k_total)
+    step = 8192
+    nk = offs.size
+    # (mean inside - mean outside) / 2 as one product with the profile
+    weights = np.concatenate([np.full(nk, 0.5 / nk), np.full(nk, -0.5 / nk)]).astype(np.float32)
+    for k0 in range(0, k_total, step):
+        k1 = min(k0 + step, k_total)
+        colour[k0:k1] = _remap_rows(ev.cmap, pts[k0:k1], nrm[k0:k1], u) @ weights
+    return log_d.reshape(lead), colour.reshape(lead)
+
+
+def score(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float, sigma: float,
+          threshold: float, miss: float, colour_weight: float) -> np.ndarray:
+    """``log p(Z | X)`` (up to a constant) of every curve: ``Σ_i log D_i + w_c c_i``, shape (...)."""
+    log_d, colour = per_normal(app, ev, points, normals, h=h, sigma=sigma, threshold=threshold, miss=miss)
+    return (log_d + colour_weight * colour).sum(axis=-1)
+
+
+def presence(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float, sigma: float,
+             threshold: float, miss: float, colour_weight: float) -> tuple[float, float, float]:
+    """Evidence that one curve (M, 2) is on the object: ``(score, mean log D_i, mean c_i)``.
+
+    ``score = mean_i (log D_i + w_c c_i)`` per normal; the other two are its edge and colour parts.
+    """
+    log_d, colour = per_normal(app, ev, points, normals, h=h, sigma=sigma, threshold=threshold, miss=miss)
+    e, col = float(log_d.mean()), float(colour.mean())
+    return e + colour_weight * col, e, col
+
+
+def confidence(presence_score: float, spread: float, *, reference: float, centre: float = 0.3) -> float:
+    """A per-frame confidence in [0, 1] that the estimate is on the object.
+
+    ``reference`` is the presence score of the template on the frame it starts on: what the
+    object looks like when it is certainly there.  The confidence is a logistic function of
+    the presence score, 0.5 at ``centre * reference`` (but at least 0.05: evidence barely
+    above background is not enough), of width ``max(reference / 4, 0.1)``, times a factor
+    for the spread of the estimate's position (``spread`` = RMS spread of the translation in
+    units of the object's size): 1 while the spread is below 0.25 object sizes, falling to 0
+    at 1 size (a sample set spread over the image has not located the object, whatever its
+    mean scores).
+    """
+    if not math.isfinite(presence_score):
+        return 0.0
+    ref = max(float(reference), 0.0) if math.isfinite(reference) else 0.0
+    c = max(centre * ref, 0.05)
+    width = max(ref / 4.0, 0.1)
+    z = (presence_score - c) / width
+    p = 1.0 / (1.0 + math.exp(-z)) if z > -50 else 0.0
+    if math.isfinite(spread):
+        p *= min(1.0, max(0.0, (1.0 - spread) / 0.75))
+    return float(p)
+
+
+# ---------------------------------------------------------------------------------------------
+# Re-acquisition: a proposal from the colour map (ICONDENSATION, AC §12 notes)
+
+
+def colour_peaks(cmap: np.ndarray, size: float, *, count: int = 5, floor: float = 0.25) -> tuple[np.ndarray, np.ndarray]:
+    """Where in the frame object-coloured regions of the object's size are: ``(centres (K, 2), strengths (K,))``.
+
+    The colour log-ratio map is averaged over a box of the object's size (on a map shrunk so
+    that the object spans about 8 pixels), and its ``count`` largest local maxima above
+    ``floor`` are returned, strongest first, with strengths ``max(value, 0)``.
+    """
+    img = _as_image(cmap)
+    h, w = img.shape
+    f = max(1, int(size / 8))
+    small = cv2.resize(img, (max(1, w // f), max(1, h // f)), interpolation=cv2.INTER_AREA) if f > 1 else img
+    k = max(1, int(round(size / f)))
+    mean = cv2.blur(small, (k, k), borderType=cv2.BORDER_REFLECT)
+    peaks = (mean >= cv2.dilate(mean, np.ones((3, 3), np.uint8))) & (mean > floor)
+    ys, xs = np.nonzero(peaks)
+    if ys.size == 0:
+        return np.zeros((0, 2)), np.zeros(0)
+    vals = mean[ys, xs].astype(np.float64)
+    order = np.argsort(vals)[::-1][:count]
+    centres = np.column_stack([(xs[order] + 0.5) * f * (w / (small.shape[1] * f)) - 0.5,
+                               (ys[order] + 0.5) * f * (h / (small.shape[0] * f)) - 0.5])
+    return centres, vals[order]
+
+
+def _log_gauss2(d: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """Log density of a 2-D Gaussian at offsets ``d`` (n, 2)."""
+    inv = np.linalg.inv(cov)
+    _, logdet = np.linalg.slogdet(cov)
+    q = np.einsum("ni,ij,nj->n", d, inv, d)
+    return -0.5 * q - 0.5 * logdet - math.log(2 * math.pi)
+
+
+def reacquisition_proposal(centres: np.ndarray, strengths: np.ndarray, origin: np.ndarray, size: float,
+                           frame_size: tuple[int, int], *, fraction: float, reappear: float = 0.1):
+    """An importance-sampling step for CONDENSATION while the object is lost.
+
+    A share ``fraction`` of the predicted samples has its translation redrawn from ``g``, a
+    mixture of isotropic Gaussians (standard deviation 0.1 object sizes) at the colour peaks
+    ``centres`` weighted by ``strengths``, at rest (its previous translation set equal to the
+    new one); the other components of those samples are kept.
+    The target prior is the dynamics' prediction ``f`` mixed with a small probability
+    ``reappear`` that the object is anywhere in the frame (uniform ``u``): while lost, the
+    object may come back where the motion model does not expect it.  Every sample then
+    carries the correction
+
+        log [ (1 - reappear) f(t) + reappear u(t) ] - log [ (1 - fraction) f(t) + fraction g(t) ],
+
+    with ``f`` approximated by a Gaussian fitted to the predicted translations, which keeps
+    the weighted set a fair sample of that prior times the likelihood (the importance
+    weights of Isard & Blake's ICONDENSATION).
+
+    Returns ``propose(prev, predicted, rng) -> (prev, shapes, log_correction)`` for
+    :func:`trackcli.trackers.condensation.step`, or None when there is no peak.
+    """
+    if centres.shape[0] == 0:
+        return None
+    w = np.asarray(strengths, dtype=np.float64)
+    w = w / w.sum()
+    sd = 0.1 * size
+    means = np.asarray(centres, dtype=np.float64) - np.asarray(origin, dtype=np.float64)[:2]
+    log_u = -math.log(frame_size[0] * frame_size[1])
+
+    def propose(prev: np.ndarray, new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        n = new.shape[0]
+        t = new[:, :2]
+        mu = t.mean(axis=0)
+        cov = np.cov(t.T) + np.eye(2) * (0.05 * size) ** 2
+        k = int(round(fraction * n))
+        out = new.copy()
+        out_prev = prev.copy()
+        if k > 0:
+            idx = rng.choice(n, size=k, replace=False)
+            comp = rng.choice(means.shape[0], size=k, p=w)
+            out[idx, :2] = means[comp] + sd * rng.standard_normal((k, 2))
+            # a sample found this way starts at rest: no velocity from where its parent was
+            out_prev[idx, :2] = out[idx, :2]
+        t = out[:, :2]
+        log_f = _log_gauss2(t - mu, cov)
+        diff = t[:, None, :] - means[None, :, :]
+        comp_log = np.log(w)[None, :] - 0.5 * (diff * diff).sum(axis=2) / sd**2 - math.log(2 * math.pi * sd * sd)
+        top = comp_log.max(axis=1)
+        log_g = top + np.log(np.exp(comp_log - top[:, None]).sum(axis=1))
+        log_prior = np.logaddexp(math.log1p(-reappear) + log_f, math.log(reappear) + log_u)
+        log_q = np.logaddexp(math.log1p(-fraction) + log_f if fraction < 1 else -np.inf, math.log(fraction) + log_g)
+        return out_prev, out, log_prior - log_q
+
+    return propose

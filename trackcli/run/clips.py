@@ -1,0 +1,579 @@
+"""Running a tracker over a clip and writing its outputs (CSV, recording, effective config).
+
+:func:`track_clip` is what ``trackcli track`` does for one clip (and what a batch job runs):
+open the clip, decide what is tracked (a learned model placed by a template drawn on this
+clip, a model alone, or a template with hand-set dynamics), call :func:`run_clip`, and write
+the effective configuration with the results (a run that fails writes none of them).
+
+:func:`run_clip` drives one of the frame loops of :mod:`trackcli.trackers.tracking`, writes every
+result to the track CSV as it arrives, mirrors it into a Rerun recording, and returns a
+:class:`RunSummary` (also the source of the one-line summary the command prints).
+All files are written atomically: an interrupted run leaves no half-written file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Callable, Collection, ContextManager, Iterable, Iterator
+
+import numpy as np
+
+from trackcli import __version__
+from trackcli.io.config import Settings, dump_yaml, to_dict
+from trackcli.dynamics.ar2 import AR2
+from trackcli.errors import ConfigError, DataError, TemplateError
+from trackcli.io.outputs import output_dir, refuse_overwriting_inputs, write_text
+from trackcli.shapes.shape_space import ShapeSpace
+from trackcli.io.tracks import OutlineColumns, TrackWriter
+
+log = logging.getLogger(__name__)
+
+#: The trackers ``track_clip`` can run.
+TRACKERS = ("condensation", "kalman")
+
+#: Colours (RGB) used in recordings.
+ESTIMATE_RGB = (255, 60, 40)
+BEST_RGB = (60, 255, 120)
+GATE_RGB = (255, 210, 0)
+FEATURE_RGB = (0, 200, 255)
+SMOOTHED_RGB = (255, 0, 255)
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    clip: str
+    tracker: str
+    frames: int
+    frames_lost: int
+    mean_found_fraction: float
+    mean_ess: float
+    tracker_seconds: float
+    decode_seconds: float
+    wall_seconds: float
+    csv: str
+    rrd: str | None
+    smoothed_csv: str | None = None
+
+    @property
+    def tracker_fps(self) -> float:
+        return self.frames / self.tracker_seconds if self.tracker_seconds > 0 else float("inf")
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["tracker_fps"] = round(self.tracker_fps, 2)
+        return d
+
+    def line(self) -> str:
+        ess = f", mean ESS {self.mean_ess:.0f}" if np.isfinite(self.mean_ess) else ""
+        return (f"{self.clip}: {self.tracker}, {self.frames} frames, {self.frames_lost} lost, "
+                f"features on {100 * self.mean_found_fraction:.0f}% of normals{ess}, "
+                f"{self.tracker_fps:.0f} frames/s (tracker alone) -> {self.csv}"
+                + (f", smoothed -> {self.smoothed_csv}" if self.smoothed_csv else ""))
+
+
+#: The keys every per-clip JSON object starts with, in ``track --json`` and ``batch --json``
+#: alike (a failed clip has them too, with None where nothing was measured).
+CLIP_JSON_KEYS = ("kind", "name", "clip", "tracker", "status", "error", "frames", "frames_lost", "tracker_fps",
+                  "csv", "rrd")
+
+
+def clip_json(name: str, clip: Any, tracker: str, summary: RunSummary | None = None,
+              error: str | None = None) -> dict[str, Any]:
+    """The JSON object of one clip of ``track --json``: :data:`CLIP_JSON_KEYS`, then the run's details."""
+    d: dict[str, Any] = {"kind": "clip", "name": name, "clip": str(clip), "tracker": tracker,
+                         "status": "failed" if summary is None else "ok", "error": error,
+                         "frames": None, "frames_lost": None, "tracker_fps": None, "csv": None, "rrd": None}
+    if summary is not None:
+        extra = summary.to_dict()
+        d.update({k: extra.pop(k) for k in ("frames", "frames_lost", "tracker_fps", "csv", "rrd")})
+        extra.pop("clip", None)
+        extra.pop("tracker", None)
+        d.update(extra)
+    return d
+
+
+class _TimedFrames:
+    """Wrap a frame iterable, recording each frame and the time spent decoding."""
+
+    def __init__(self, frames: Iterable[Any]):
+        self._it = iter(frames)
+        self.decode_seconds = 0.0
+        self.current: Any = None
+
+    def __iter__(self) -> Iterator[Any]:
+        return self
+
+    def __next__(self) -> Any:
+        t0 = time.perf_counter()
+        try:
+            self.current = next(self._it)
+        finally:
+            self.decode_seconds += time.perf_counter() - t0
+        return self.current
+
+
+def run_clip(
+    video: Any,
+    make_tracker: Callable[[Iterable[Any]], Iterator[Any]],
+    space: ShapeSpace,
+    *,
+    tracker: str,
+    csv_path: Path,
+    rrd_path: Path | None,
+    params: dict[str, Any],
+    jpeg_quality: int = 80,
+    progress: Callable[[int], None] | None = None,
+    recording_id: str | None = None,
+    outline_points: int = 64,
+    frames_mode: str = "auto",
+    smoother: Any = None,
+    smooth_csv_path: Path | None = None,
+    properties: dict[str, Any] | None = None,
+) -> RunSummary:
+    """Track ``video`` with ``make_tracker(frames)`` and write the outputs.
+
+    Parameters
+    ----------
+    video : trackcli.io.video.Video
+    make_tracker : callable
+        Given an iterable of frames, returns the iterator of FrameResult.
+    space : ShapeSpace
+        Gives the CSV column names.
+    progress : callable, optional
+        Called with 1 after every frame (for a progress bar).  It may raise (e.g.
+        KeyboardInterrupt to stop the run): the outputs are then removed as for any error.
+    recording_id : str, optional
+        Readable name of the recording (its id adds a unique suffix), see
+        :class:`trackcli.io.recording.Recording`.
+    properties : dict, optional
+        Recording properties, e.g. the seed.
+    outline_points : int
+        Points of the estimated outline written to every CSV row (0: no outline columns).
+    frames_mode : {"auto", "jpeg", "asset"}
+        How the recording stores frames (``output.frames``, see
+        :func:`trackcli.io.recording.frame_storage`).
+    smoother : optional
+        A consumer of the results (:mod:`trackcli.trackers.smoothing`: ``push(result)`` and
+        ``finish()`` return smoothed results); they go to ``smooth_csv_path`` in the track
+        format and, as a second contour (``video/smoothed``), to the recording.
+    """
+    if outline_points == 1:
+        raise ConfigError("output.outline_points: expected 0 (no outline) or at least 2 points, got 1")
+    outline = OutlineColumns(space, int(outline_points)) if outline_points else None
+    frames = _TimedFrames(video)
+    results = make_tracker(frames)
+    t_start = time.perf_counter()
+    n = lost = 0
+    found_sum = 0.0
+    ess_vals: list[float] = []
+    series: dict[str, list] = {k: [] for k in ("frame", "time", "tx", "ty", "cx", "cy", "found", "gate", "ess", "loglik")}
+    hist_rows: list[np.ndarray] = []
+    hist_edges = None
+    rec_ctx = None
+    rec = None
+    log_frame = None
+    smooth_ctx = TrackWriter(smooth_csv_path, space.names, outline) if smoother is not None else contextlib.nullcontext()
+    smoothed_centroids: list[tuple[int, float, float, float]] = []
+
+    def write_smoothed(done: list[Any]) -> None:
+        for s in done:
+            smooth_writer.write(s)
+            smoothed_centroids.append((s.index, s.time, float(s.centroid[0]), float(s.centroid[1])))
+            if rec is not None:
+                rec.set_frame(s.index, s.time)
+                rec.log_contour("video/smoothed", s.contour, color=SMOOTHED_RGB, width=2.0)
+
+    try:
+        if rrd_path is not None:
+            from trackcli.io.recording import Recording
+
+            rec_ctx = Recording(rrd_path, app_id="trackcli", recording_id=recording_id, blueprint="track",
+                                properties=properties)
+            rec = rec_ctx.__enter__()
+        with TrackWriter(csv_path, space.names, outline) as writer, smooth_ctx as smooth_writer:
+            if rec is not None:
+                rec.log_params("params", params)
+                from trackcli.io.recording import frame_storage
+
+                path = getattr(video, "path", None)
+                storage, why = frame_storage(frames_mode, codec=getattr(video, "codec", ""),
+                                             embeddable=getattr(video, "is_rerun_video_asset", lambda: False)(),
+                                             whole_clip=getattr(video, "whole_clip", False))
+                log.info("recording frames as %s: %s", storage.upper() if storage == "jpeg" else "a video asset", why)
+                log_frame = rec.frame_logger(path if storage == "asset" else None, quality=jpeg_quality)
+            record_seconds = 0.0
+            for r in results:
+                writer.write(r)
+                n += 1
+                lost += int(r.lost)
+                found_sum += r.n_found / max(r.n_normals, 1)
+                if np.isfinite(r.ess):
+                    ess_vals.append(r.ess)
+                for key, val in (("frame", r.index), ("time", r.time), ("tx", r.X[0]), ("ty", r.X[1]),
+                                 ("cx", r.centroid[0]), ("cy", r.centroid[1]), ("found", r.n_found),
+                                 ("gate", r.gate_rms), ("ess", r.ess), ("loglik", r.loglik)):
+                    series[key].append(val)
+                if "histogram" in r.display:
+                    hist_rows.append(np.asarray(r.display["histogram"], dtype=float))
+                    hist_edges = r.display["hist_edges"]
+                if rec is not None:
+                    t0 = time.perf_counter()
+                    _record_frame(rec, log_frame, frames.current, r)
+                    record_seconds += time.perf_counter() - t0
+                if smoother is not None:
+                    write_smoothed(smoother.push(r))
+                if progress is not None:
+                    progress(1)
+            if smoother is not None:
+                write_smoothed(smoother.finish())
+            wall = time.perf_counter() - t_start
+            if rec is not None:
+                _record_series(rec, series, hist_rows, hist_edges)
+                if smoothed_centroids:
+                    c = np.asarray(smoothed_centroids)
+                    rec.send_series("series/centroid_smoothed", c[:, 0].astype(np.int64), c[:, 1], c[:, 2:],
+                                    names=["cx", "cy"])
+    except BaseException as exc:
+        if rec is not None:
+            rec_ctx.__exit__(type(exc), exc, exc.__traceback__)
+        raise
+    if rec_ctx is not None:
+        rec_ctx.__exit__(None, None, None)
+    tracker_seconds = max(wall - frames.decode_seconds - record_seconds, 1e-9)
+    return RunSummary(
+        clip=str(getattr(video, "path", "?")), tracker=tracker, frames=n, frames_lost=lost,
+        mean_found_fraction=found_sum / n if n else 0.0,
+        mean_ess=float(np.mean(ess_vals)) if ess_vals else float("nan"),
+        tracker_seconds=tracker_seconds, decode_seconds=frames.decode_seconds, wall_seconds=wall,
+        csv=str(csv_path), rrd=str(rrd_path) if rrd_path else None,
+        smoothed_csv=str(smooth_csv_path) if smoother is not None else None,
+    )
+
+
+def _record_frame(rec: Any, log_frame: Any, frame: Any, r: Any) -> None:
+    rec.set_frame(r.index, r.time)
+    log_frame(r.index, frame.image)
+    d = r.display
+    if "particle_contours" in d:
+        rec.log_contours("video/particles", d["particle_contours"], d["particle_weights"], closed=True)
+    if "gate_inner" in d:
+        rec.log_segments("video/gates", d["gate_inner"], d["gate_outer"], color=GATE_RGB)
+    if "features" in d and len(d["features"]):
+        rec.log_points("video/features", d["features"], colors=FEATURE_RGB, radii=2.0)
+    rec.log_contour("video/estimate", r.contour, color=ESTIMATE_RGB, width=2.0)
+    rec.log_points("video/centroid", r.centroid[None], colors=ESTIMATE_RGB, radii=3.0)
+    if "histogram" in d:
+        rec.log_histogram("histogram/tx", d["histogram"], d["hist_edges"])
+
+
+def _record_series(rec: Any, s: dict[str, list], hist_rows: list, hist_edges: Any) -> None:
+    if not s["frame"]:
+        return
+    f = np.asarray(s["frame"], dtype=np.int64)
+    t = np.asarray(s["time"], dtype=float)
+    rec.send_series("series/translation", f, t, np.column_stack([s["tx"], s["ty"]]), names=["tx", "ty"], unit="px")
+    rec.send_series("series/centroid", f, t, np.column_stack([s["cx"], s["cy"]]), names=["cx", "cy"], unit="px")
+    rec.send_series("series/gate_rms", f, t, np.asarray(s["gate"], dtype=float), names="gate_rms", unit="px")
+    rec.send_series("series/normals_with_feature", f, t, np.asarray(s["found"], dtype=float),
+                    names="normals with a feature", unit="count")
+    ess = np.asarray(s["ess"], dtype=float)
+    if np.isfinite(ess).any():
+        rec.send_series("series/ess", f, t, ess, names="ESS", unit="samples")
+        rec.send_series("series/loglik", f, t, np.asarray(s["loglik"], dtype=float), names="loglik",
+                        unit="log-likelihood")
+    if hist_rows and hist_edges is not None:
+        rec.log_histogram_image("histogram/tx_over_time", np.vstack(hist_rows), hist_edges)
+
+
+# ---------------------------------------------------------------------------------------------
+# One clip, as `trackcli track` runs it
+
+
+@dataclass(frozen=True)
+class TrackingSetup:
+    """What is tracked in one clip.
+
+    Attributes
+    ----------
+    space : ShapeSpace
+        The shape-space, anchored in this clip.
+    dynamics : AR2
+        Dynamics per frame interval of this clip.
+    X0 : ndarray of shape (Nx,)
+        Initial shape vector.
+    source : str
+        One-line description (for logs and recordings).
+    """
+
+    space: ShapeSpace
+    dynamics: AR2
+    X0: np.ndarray
+    source: str
+
+
+def clip_name(clip: str | os.PathLike[str]) -> str:
+    """Default name of a clip's outputs: a file's stem, or a folder's name."""
+    p = Path(clip)
+    return p.stem if p.suffix else p.name
+
+
+def check_template_frame(template: Any, video: Any) -> None:
+    """Raise TemplateError if ``template`` was drawn on a frame of another size than ``video``'s."""
+    if template.frame_size and tuple(template.frame_size) != (video.width, video.height):
+        raise TemplateError(f"the template was drawn on a {template.frame_size[0]}x{template.frame_size[1]} frame "
+                            f"but {video.path} is {video.width}x{video.height}; draw a template on this clip")
+
+
+def warn_if_drawn_elsewhere(template: Any, template_path: str | os.PathLike[str], video: Any) -> bool:
+    """Log a warning if ``template`` was drawn on another clip than ``video``; True if so.
+
+    A template places the object where it was drawn: on another clip of the same size it
+    starts wherever the object happened to be there, and the tracker may never find it.
+    Clips are the same when they are the same file, or (paths stored relative to where
+    ``draw`` ran) when their names are equal.
+    """
+    drawn = getattr(template, "clip", None)
+    if not drawn:
+        return False
+    here = Path(str(video.path))
+    try:
+        same = os.path.samefile(drawn, here)
+    except OSError:
+        same = False
+    if same or Path(drawn).name == here.name:
+        return False
+    log.warning("%s was drawn on %s, not on %s: tracking starts where the object was in that clip "
+                "(draw a template on this clip to start on the object)", template_path, drawn, here)
+    return True
+
+
+def template_space(template: Any, path: str | os.PathLike[str], kind: str) -> ShapeSpace:
+    """The shape-space ``kind`` on a template, or a TemplateError naming the template file.
+
+    A template whose control points (nearly) coincide or lie on a line cannot carry a
+    similarity or affine shape-space: its columns would be linearly dependent.
+    """
+    from trackcli.trackers.tracking import build_space
+
+    try:
+        return build_space(template, kind)
+    except DataError:
+        raise TemplateError(f"{path}: the outline is too degenerate for a {kind} shape-space (its control "
+                            "points nearly coincide or lie on a line); draw a larger outline") from None
+
+
+def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.PathLike[str] | None,
+                   settings: Settings, video: Any, *, starts_at_template: bool = True) -> TrackingSetup:
+    """Decide what is tracked in ``video``.
+
+    - ``model`` and ``template``: the model's shape-space and learned dynamics, placed where
+      the template was drawn on this clip (position and size, see
+      :func:`trackcli.dynamics.model.place_space`; dynamics adapted by
+      :func:`trackcli.dynamics.model.place_dynamics` with ``settings.placement``);
+    - ``model`` alone: the model as learned, starting where its own template was drawn
+      (dynamics adapted as above, mean kept);
+    - ``template`` alone: the template's shape-space (``settings.shape_space``) with hand-set
+      dynamics (``settings.dynamics``).
+
+    With ``starts_at_template`` (the tracker starts where the template was drawn), a template
+    drawn on another clip is warned about (:func:`warn_if_drawn_elsewhere`).
+
+    Raises
+    ------
+    ConfigError
+        Neither a model nor a template is given.
+    ModelError, TemplateError
+        A file is missing or malformed, or the template does not fit this clip or model.
+    """
+    from trackcli.dynamics.model import load_model, place_dynamics, place_space
+    from trackcli.shapes.template import load_template
+    from trackcli.trackers.tracking import handset_dynamics
+
+    if not model and not template:
+        raise ConfigError("nothing to track: give a model, a template, or both")
+    tau = 1.0 / video.fps
+    if model:
+        m = load_model(model)
+        noise = {"translation_noise": settings.placement.translation_noise,
+                 "deformation_noise": settings.placement.deformation_noise,
+                 "coupling": settings.placement.coupling,
+                 "max_spectral_radius": settings.learning.max_spectral_radius}
+        if template:
+            tmpl = load_template(template)
+            check_template_frame(tmpl, video)
+            if starts_at_template:
+                warn_if_drawn_elsewhere(tmpl, template, video)
+            space, X0 = place_space(m.space, tmpl)
+            return TrackingSetup(space, place_dynamics(m.dynamics, space, X0, tau, **noise), X0,
+                                 f"model {model} placed by template {template}")
+        return TrackingSetup(m.space, place_dynamics(m.dynamics, m.space, None, tau, **noise),
+                             np.zeros(m.space.Nx), f"model {model}")
+    tmpl = load_template(template)
+    check_template_frame(tmpl, video)
+    if starts_at_template:
+        warn_if_drawn_elsewhere(tmpl, template, video)
+    space = template_space(tmpl, template, settings.shape_space)
+    return TrackingSetup(space, handset_dynamics(space, settings.dynamics, tau), np.zeros(space.Nx),
+                         f"template {template} (hand-set dynamics)")
+
+
+def output_base(outdir: str | os.PathLike[str], name: str, tracker: str) -> Path:
+    """``outdir/NAME.TRACKER``: the outputs are this plus ``.csv``, ``.rrd``, ``.config.yaml``."""
+    return Path(outdir) / f"{name}.{tracker}"
+
+
+class _NullBar:
+    def update(self, n: int) -> None:
+        pass
+
+
+def track_clip(
+    clip: str | os.PathLike[str],
+    *,
+    settings: Settings,
+    outdir: str | os.PathLike[str],
+    model: str | os.PathLike[str] | None = None,
+    template: str | os.PathLike[str] | None = None,
+    tracker: str = "condensation",
+    name: str | None = None,
+    rrd: bool = True,
+    progress: Callable[[str, int], ContextManager[Any]] | None = None,
+    explicit: Collection[str] | None = None,
+    smooth: bool = False,
+    inputs: dict[str, Any] | None = None,
+) -> RunSummary:
+    """Track one clip and write its outputs: what ``trackcli track`` does per clip.
+
+    Writes, atomically, in ``outdir`` (created if needed):
+
+    - ``NAME.TRACKER.csv``: per-frame estimates (see :mod:`trackcli.io.tracks`);
+    - ``NAME.TRACKER.rrd``: the Rerun recording, if ``rrd`` and ``settings.output.rrd``;
+    - ``NAME.TRACKER.smoothed.csv``: with ``smooth``, the smoothed estimates (Kalman:
+      Rauch–Tung–Striebel; CONDENSATION: forward-filtering backward-smoothing; both over
+      the whole clip, see :mod:`trackcli.trackers.smoothing`);
+    - ``NAME.TRACKER.config.yaml``: the effective settings (written last).
+
+    A run that fails writes none of them (earlier outputs of the same name stay as they
+    were) and removes ``outdir`` again if it created it.  An output that would replace the
+    clip, the model or the template is refused.
+
+    Parameters
+    ----------
+    clip : path
+        Video file or image folder, read with ``settings.video`` (fps, start, end, step).
+    settings : Settings
+        Effective settings; ``settings.seed`` seeds CONDENSATION.
+    outdir : path
+        Output folder.
+    model, template : path, optional
+        What to track (at least one), see :func:`tracking_setup`.
+    tracker : {"condensation", "kalman"}
+    name : str, optional
+        Output file prefix; default :func:`clip_name` of ``clip``.
+    rrd : bool
+        Write a recording (when the settings also ask for one).
+    progress : callable, optional
+        ``progress(label, n_frames)`` returns a context manager whose value has
+        ``update(n)``, called after every frame (e.g. a progress bar).
+    explicit : collection of str, optional
+        With a ``model``: the dotted setting keys the user set (configuration file and
+        options).  Every other key of the sections a model carries
+        (:data:`trackcli.dynamics.model.MODEL_SECTIONS`) is then taken from the model's stored
+        settings (:func:`trackcli.dynamics.model.settings_with_model`).  None: ``settings`` are used
+        as given.
+    smooth : bool
+        Also smooth the track offline (see above).
+    inputs : dict, optional
+        Other input files of the run by label (e.g. ``{"-c/--config": path}``), which the
+        outputs must not replace either.
+
+    Returns
+    -------
+    RunSummary
+
+    Raises
+    ------
+    ConfigError
+        Unknown tracker, nothing to track, a frame selection outside the clip, or an output
+        that names an input.
+    VideoError, ModelError, TemplateError
+        An input cannot be read or does not fit this clip.
+    """
+    from trackcli.trackers import tracking
+    from trackcli.io.video import open_video
+
+    if tracker not in TRACKERS:
+        raise ConfigError(f"tracker: expected one of {', '.join(TRACKERS)}, got {tracker!r}")
+    name = name or clip_name(clip)
+    if model and explicit is not None:
+        from trackcli.dynamics.model import load_model, settings_with_model
+
+        settings, sources = settings_with_model(settings, load_model(model).settings, explicit, f"model {model}")
+        for section, source in sources.items():
+            log.info("%s settings: %s", section, source)
+    base = output_base(outdir, name, tracker)
+    csv_path, rrd_path, config_path = (Path(f"{base}{ext}") for ext in (".csv", ".rrd", ".config.yaml"))
+    smooth_path = Path(f"{base}.smoothed.csv") if smooth else None
+    write_rrd = rrd and settings.output.rrd
+    refuse_overwriting_inputs({"the track CSV": csv_path, "the recording": rrd_path if write_rrd else None,
+                               "the effective configuration": config_path, "the smoothed track": smooth_path},
+                              {"clip": clip, "model": model, "template": template, **(inputs or {})})
+    v = settings.video
+    with open_video(clip, fps=v.fps, start=v.start, end=v.end, step=v.step) as video, output_dir(outdir):
+        # a CONDENSATION sample set drawn from the steady state does not start at the template
+        at_template = tracker == "kalman" or settings.condensation.init == "template"
+        setup = tracking_setup(model, template, settings, video, starts_at_template=at_template)
+        space, dynamics, X0 = setup.space, setup.dynamics, setup.X0
+        if tracker == "kalman":
+            def make(frames: Iterable[Any]) -> Iterator[Any]:
+                return tracking.track_kalman(frames, space, dynamics, settings.measurement, settings.kalman, X0=X0,
+                                             observation=settings.condensation)
+        else:
+            rng = np.random.default_rng(settings.seed)
+
+            def make(frames: Iterable[Any]) -> Iterator[Any]:
+                return tracking.track_condensation(frames, space, dynamics, settings.measurement,
+                                                   settings.condensation, rng, X0=X0)
+        smoother: Any = None
+        if smooth:
+            from trackcli.trackers.smoothing import KalmanTrackSmoother, ParticleSmoother
+
+            smoother = (KalmanTrackSmoother(space, dynamics) if tracker == "kalman"
+                        else ParticleSmoother(space, dynamics))
+        _log_setup(name, tracker, setup, settings, video)
+        params = {"clip": str(clip), "tracker": tracker, "source": setup.source, "settings": to_dict(settings)}
+        # the seed as text: exact at any size, and of one type for every run in a process
+        properties = {"seed": str(settings.seed), "clip": str(clip), "tracker": tracker, "trackcli": __version__}
+        bar_ctx = progress(f"{name} ({tracker})", len(video)) if progress else contextlib.nullcontext(_NullBar())
+        with bar_ctx as bar:
+            summary = run_clip(video, make, space, tracker=tracker, csv_path=csv_path,
+                               rrd_path=rrd_path if write_rrd else None,
+                               params=params, jpeg_quality=settings.output.jpeg_quality,
+                               progress=bar.update, recording_id=f"{name}-{tracker}-seed{settings.seed}",
+                               properties=properties, outline_points=settings.output.outline_points,
+                               frames_mode=settings.output.frames, smoother=smoother, smooth_csv_path=smooth_path)
+        # written with the outputs, not before them: a run that fails leaves no configuration
+        write_text(config_path, dump_yaml(settings))
+        log.info("%s: %d frames decoded in %.2f s, tracked in %.2f s", name, summary.frames, summary.decode_seconds,
+                 summary.tracker_seconds)
+        return summary
+
+
+def _log_setup(name: str, tracker: str, setup: TrackingSetup, settings: Settings, video: Any) -> None:
+    """What ``-v`` tells about a clip before it runs: what is tracked, where it starts, the sampling."""
+    r = video.indices
+    log.info("%s: %s tracker on %s, frames %d-%d step %d (%d frames), %.3g frames/s", name, tracker, video.path,
+             r.start, r.stop - 1, r.step, len(r), video.fps)
+    log.info("%s: tracking %s; shape-space %s (%d components)", name, setup.source, setup.space.kind,
+             setup.space.Nx)
+    x0 = ", ".join(f"{n}={v:.3g}" for n, v in zip(setup.space.names, setup.X0))
+    log.info("%s: initial shape X0: %s", name, x0)
+    if tracker == "condensation":
+        c = settings.condensation
+        log.info("%s: seed %d; samples %d falling to %d over %d frames; likelihood %s, init %s", name,
+                 settings.seed, c.initial_particles, c.particles, c.schedule_frames, c.likelihood, c.init)

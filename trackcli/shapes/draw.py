@@ -1,0 +1,376 @@
+"""Making templates without a mouse: from points, an ellipse, a box or a mask.
+
+Every route ends the same way: an ordered outline polygon ``(P, 2)`` in image ``(x, y)``
+pixels, to which a B-spline with a chosen number of control points is fitted by least
+squares (:func:`trackcli.shapes.spline.fit`).
+
+- ``--points``: the polygon is given.
+- ``--ellipse cx,cy,a,b[,angle]``: the polygon is sampled from the ellipse (angle in degrees,
+  clockwise on screen since ``y`` points down).
+- ``--box x,y,w,h``: the object inside the box is segmented with GrabCut (OpenCV), seeded by
+  the box (outside = background), and the outline of the largest region is traced.
+- ``--mask FILE``: a binary image (non-zero = object); the outline of its largest region.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from pathlib import Path
+
+import numpy as np
+
+from trackcli.errors import ConfigError, DataError, InputError, short_repr
+
+log = logging.getLogger(__name__)
+
+# ---------------------------------------------------------------------------------------------
+# Parsing user input
+
+
+def parse_numbers(text: str, count: int | tuple[int, int], what: str,
+                  error: type[Exception] = ConfigError) -> list[float]:
+    """Parse ``"a,b,c"`` into floats, checking how many there are.
+
+    Raises ``error``: ConfigError (an invalid option value) by default, InputError for a
+    line of an input file.
+    """
+    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise error(f"{what}: expected comma-separated numbers, got {short_repr(text)}") from None
+    lo, hi = (count, count) if isinstance(count, int) else count
+    if not lo <= len(values) <= hi:
+        n = str(lo) if lo == hi else f"{lo} to {hi}"
+        raise error(f"{what}: expected {n} numbers, got {len(values)} in {short_repr(text)}")
+    if not all(np.isfinite(values)):
+        raise error(f"{what}: numbers must be finite, got {short_repr(text)}")
+    return values
+
+
+def parse_points(spec: str) -> np.ndarray:
+    """Ordered points from ``"x1,y1 x2,y2 ..."`` (or ``x1,y1,x2,y2,...``) or from a file of them.
+
+    A file holds one ``x,y`` (or ``x y``) pair per line; blank lines and lines starting with
+    ``#`` are ignored.  Returns an array of shape ``(P, 2)``.
+    """
+    path = Path(spec)
+    looks_numeric = re.fullmatch(r"[\d.,\s+\-eE]+", spec) is not None
+    if not looks_numeric:
+        if not path.is_file():
+            raise ConfigError(f"--points: {short_repr(spec)} is neither x,y pairs nor an existing points file")
+        try:
+            text = path.read_text(encoding="utf-8", errors="replace")
+        except OSError as exc:
+            raise InputError(f"{path}: cannot read points file ({exc.strerror or exc})") from None
+        rows = []
+        for k, line in enumerate(text.splitlines(), 1):
+            line = line.strip()
+            if line and not line.startswith("#"):
+                rows.append(parse_numbers(line, 2, f"{spec} line {k}", InputError))
+        pts = np.asarray(rows, dtype=float).reshape(-1, 2)
+        if len(pts) < 3:
+            raise InputError(f"{spec}: need at least 3 points, got {len(pts)}")
+    else:
+        values = parse_numbers(spec, (0, 10**6), "--points")
+        if len(values) % 2:
+            raise ConfigError(f"--points: expected x,y pairs, got an odd count of numbers ({len(values)})")
+        pts = np.asarray(values, dtype=float).reshape(-1, 2)
+    if len(pts) < 3:
+        raise ConfigError(f"--points: need at least 3 points, got {len(pts)}")
+    return pts
+
+
+# ---------------------------------------------------------------------------------------------
+# Outlines
+
+#: Smallest width and height (px) of the part of an outline inside the frame, and of a frame.
+MIN_OUTLINE_SIDE = 8
+
+
+def check_frame_size(frame_size: tuple[int, int], clip: str) -> None:
+    """Raise DataError if frames of ``frame_size = (w, h)`` are too small to draw on."""
+    w, h = frame_size
+    if w < MIN_OUTLINE_SIDE or h < MIN_OUTLINE_SIDE:
+        raise DataError(f"{clip}: frames are {w}x{h} px, too small to draw a template on "
+                        f"(at least {MIN_OUTLINE_SIDE}x{MIN_OUTLINE_SIDE})")
+
+
+def check_outline_in_frame(outline: np.ndarray, frame_size: tuple[int, int], what: str, *,
+                           closed: bool = True) -> None:
+    """Raise ConfigError if the outline ``(P, 2)`` is tiny or lies (almost) outside the frame.
+
+    The rule is the one ``--box`` follows: the outline's bounding box, cut to the frame
+    ``(w, h)``, must be at least :data:`MIN_OUTLINE_SIDE` px wide and high (an open curve:
+    wide or high).
+    """
+    w, h = frame_size
+    pts = np.asarray(outline, dtype=float)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    size = hi - lo
+    if (size.min() if closed else size.max()) < MIN_OUTLINE_SIDE:
+        raise ConfigError(f"{what}: the outline spans only {size[0]:.3g}x{size[1]:.3g} px (at least "
+                          f"{MIN_OUTLINE_SIDE} px {'each way' if closed else 'one way'})")
+    inside = np.minimum(hi, [w - 1.0, h - 1.0]) - np.maximum(lo, 0.0)
+    if inside.min() < 0 or (inside.min() if closed else inside.max()) < MIN_OUTLINE_SIDE:
+        raise ConfigError(f"{what}: the outline lies (almost) outside the {w}x{h} frame "
+                          f"(at least {MIN_OUTLINE_SIDE}x{MIN_OUTLINE_SIDE} px of it must be inside)")
+
+
+def ellipse_outline(cx: float, cy: float, a: float, b: float, angle_deg: float = 0.0, n: int = 256) -> np.ndarray:
+    """Points ``(n, 2)`` on an ellipse with semi-axes ``a`` (along x before rotation) and ``b``."""
+    if a <= 0 or b <= 0:
+        raise ConfigError(f"--ellipse: semi-axes must be positive, got a={a:g}, b={b:g}")
+    t = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    c, s = np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))
+    x, y = a * np.cos(t), b * np.sin(t)
+    return np.column_stack([cx + c * x - s * y, cy + s * x + c * y])
+
+
+def mask_outline(mask: np.ndarray) -> np.ndarray:
+    """Outline ``(P, 2)`` of the largest region of a binary mask, as an ordered polygon."""
+    import cv2
+
+    m = (np.asarray(mask) > 0).astype(np.uint8)
+    if m.ndim != 2:
+        raise InputError(f"mask must be a 2-D image, got shape {m.shape}")
+    contours, _ = cv2.findContours(m, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    if not contours:
+        raise DataError("the mask contains no object (no non-zero pixels)")
+    c = max(contours, key=cv2.contourArea)
+    if cv2.contourArea(c) < 9:
+        raise DataError("the mask's largest region is too small to outline (under 9 px)")
+    return c[:, 0, :].astype(float)
+
+
+def load_mask(path: str | Path, frame_size: tuple[int, int] | None = None) -> np.ndarray:
+    """Read a binary mask image (non-zero = object); check its size against the frame."""
+    import cv2
+
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{p}: no such mask file")
+    m = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)
+    if m is None:
+        raise InputError(f"{p}: not an image OpenCV can read")
+    if frame_size is not None and (m.shape[1], m.shape[0]) != tuple(frame_size):
+        raise InputError(f"{p}: mask is {m.shape[1]}x{m.shape[0]} but the frame is {frame_size[0]}x{frame_size[1]}")
+    return m
+
+
+def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *, iterations: int = 5) -> np.ndarray:
+    """Segment the object inside ``box = (x, y, w, h)`` with GrabCut; returns a uint8 mask.
+
+    Everything outside the box is background.  The result is cleaned: small specks removed by
+    a morphological opening, holes filled, and only the largest region kept.
+    """
+    import cv2
+
+    h_img, w_img = image_bgr.shape[:2]
+    x, y, w, h = box
+    if w <= 0 or h <= 0:
+        raise ConfigError(f"--box: width and height must be positive, got {w:g}x{h:g}")
+    x0, y0 = int(round(max(0.0, x))), int(round(max(0.0, y)))
+    x1, y1 = int(round(min(float(w_img), x + w))), int(round(min(float(h_img), y + h)))
+    if x1 - x0 < 8 or y1 - y0 < 8:
+        raise ConfigError(f"--box {x:g},{y:g},{w:g},{h:g}: lies (almost) outside the {w_img}x{h_img} frame")
+    rect = (x0, y0, x1 - x0, y1 - y0)
+    mask = np.zeros((h_img, w_img), np.uint8)
+    bgd = np.zeros((1, 65), np.float64)
+    fgd = np.zeros((1, 65), np.float64)
+    # GrabCut needs some background: if the box covers the whole frame, shrink it by a pixel.
+    if rect[2] >= w_img - 1 and rect[3] >= h_img - 1:
+        rect = (1, 1, w_img - 2, h_img - 2)
+    cv2.setRNGSeed(0)  # GrabCut's GMM initialisation uses OpenCV's RNG: keep runs reproducible
+    cv2.grabCut(image_bgr, mask, rect, bgd, fgd, iterations, cv2.GC_INIT_WITH_RECT)
+    fg = np.where((mask == cv2.GC_FGD) | (mask == cv2.GC_PR_FGD), 255, 0).astype(np.uint8)
+    k = max(3, int(round(min(rect[2], rect[3]) * 0.03)) | 1)
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
+    fg = cv2.morphologyEx(fg, cv2.MORPH_OPEN, kernel)
+    fg = cv2.morphologyEx(fg, cv2.MORPH_CLOSE, kernel)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(fg, connectivity=8)
+    if n <= 1 or stats[1:, cv2.CC_STAT_AREA].max() < 0.15 * rect[2] * rect[3]:
+        # GrabCut finds nothing convincing (small or low-contrast objects): the ellipse
+        # inscribed in the box is the honest fallback, and the user is told.
+        log.warning("--box %g,%g,%g,%g: automatic segmentation found no clear object; "
+                    "using the ellipse inscribed in the box", x, y, w, h)
+        fallback = np.zeros((h_img, w_img), np.uint8)
+        box_rr = (((x0 + x1) / 2.0, (y0 + y1) / 2.0), (float(x1 - x0), float(y1 - y0)), 0.0)
+        cv2.ellipse(fallback, box_rr, 255, -1)
+        return fallback
+    largest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    fg = np.where(labels == largest, 255, 0).astype(np.uint8)
+    # fill holes: everything not reachable from the border as background is object
+    contours, _ = cv2.findContours(fg, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    filled = np.zeros_like(fg)
+    cv2.drawContours(filled, contours, -1, 255, thickness=cv2.FILLED)
+    return filled
+
+
+def polygon_mask(points: np.ndarray, frame_size: tuple[int, int]) -> np.ndarray:
+    """Rasterise a closed polygon ``(P, 2)`` into a uint8 mask of ``frame_size = (w, h)``."""
+    import cv2
+
+    w, h = frame_size
+    m = np.zeros((h, w), np.uint8)
+    pts = np.round(np.asarray(points) * 16).astype(np.int32).reshape(-1, 1, 2)
+    cv2.fillPoly(m, [pts], 255, lineType=cv2.LINE_8, shift=4)
+    return m
+
+
+def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
+    """Intersection over union of two binary masks."""
+    a, b = np.asarray(a) > 0, np.asarray(b) > 0
+    union = np.logical_or(a, b).sum()
+    return float(np.logical_and(a, b).sum() / union) if union else 0.0
+
+
+# ---------------------------------------------------------------------------------------------
+# Templates and previews
+
+
+def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: bool = True, clip: str | None = None,
+                 frame: int = 0, frame_size: tuple[int, int] | None = None, source: str = ""):
+    """Fit a B-spline with ``n_ctrl`` control points to an ordered outline; return a Template."""
+    from trackcli.shapes.spline import fit
+    from trackcli.shapes.template import Template
+
+    outline = np.asarray(outline, dtype=float)
+    if closed:
+        outline = canonical_start(outline)
+    if len(outline) < n_ctrl:
+        # too few points to pin every control point: resample the polygon densely first
+        outline = _resample_polygon(outline, max(4 * n_ctrl, 64), closed)
+    Q = fit(outline, n_ctrl, degree=degree, closed=closed)
+    cp = np.column_stack([Q[:n_ctrl], Q[n_ctrl:]])
+    template = Template(cp, degree=degree, closed=closed, clip=clip, frame=frame, frame_size=frame_size, source=source)
+    if closed and len(outline) >= 3:
+        import cv2
+
+        size = float(np.sqrt(abs(cv2.contourArea(outline.astype(np.float32)))))
+        err = fit_error(template, outline)
+        tol = max(3.0, 0.1 * size)
+        if err > tol:
+            # Thin parts (a strand of reflection, a tail) can throw the least-squares fit far
+            # off the outline: remove them with an opening about 1/8 of the object's size and
+            # fit again.
+            lo = outline.min(axis=0) - 2
+            hi = outline.max(axis=0) + 2
+            shape = (int(hi[0] - lo[0]) + 1, int(hi[1] - lo[1]) + 1)
+            m = polygon_mask(outline - lo, shape)
+            k = max(3, int(round(size / 8)) | 1)
+            m = cv2.morphologyEx(m, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+            if m.any():
+                opened = canonical_start(mask_outline(m) + lo)
+                Q = fit(opened, n_ctrl, degree=degree, closed=True)
+                cp = np.column_stack([Q[:n_ctrl], Q[n_ctrl:]])
+                smooth_t = Template(cp, degree=degree, closed=closed, clip=clip, frame=frame, frame_size=frame_size,
+                                    source=source + " (thin parts removed)")
+                err_s = fit_error(smooth_t, opened)
+                if err_s <= tol:
+                    log.warning("the outline has thin parts the %d-control-point fit strayed on (%.0f px off); "
+                                "they were removed (%.0f px)", n_ctrl, err, err_s)
+                    return smooth_t
+        if err > tol:
+            # A deep, narrow concavity (a swan's neck, an arm held out) that n_ctrl control
+            # points cannot follow can also throw the fit off; the convex hull is smooth,
+            # always fits, and is what a contour of this many control points can track.
+            hull = cv2.convexHull(outline.astype(np.float32))[:, 0, :].astype(float)
+            hull = _resample_polygon(canonical_start(hull), max(8 * n_ctrl, 128), True)
+            Q = fit(hull, n_ctrl, degree=degree, closed=True)
+            cp = np.column_stack([Q[:n_ctrl], Q[n_ctrl:]])
+            hull_t = Template(cp, degree=degree, closed=closed, clip=clip, frame=frame, frame_size=frame_size,
+                              source=source + " (convex hull)")
+            log.warning("the outline has detail %d control points cannot follow (fit %.0f px off it); "
+                        "using its convex hull (more control points: --n-ctrl)", n_ctrl, err)
+            template = hull_t
+    return template
+
+
+def fit_error(template, outline: np.ndarray) -> float:
+    """Largest distance (px) from the template's curve to the closed polygon ``outline``."""
+    import cv2
+
+    from trackcli.shapes.spline import dense_polygon
+
+    poly = dense_polygon(template.Q, template.basis())
+    contour = np.asarray(outline, dtype=np.float32).reshape(-1, 1, 2)
+    return max(abs(cv2.pointPolygonTest(contour, (float(x), float(y)), True)) for x, y in poly)
+
+
+def canonical_start(outline: np.ndarray) -> np.ndarray:
+    """Order a closed outline clockwise on screen, starting at its topmost point.
+
+    Templates of the same object drawn on different frames then have control points in
+    correspondence (control point 0 at the top), which models placed on a new clip rely on.
+    """
+    x, y = outline[:, 0], outline[:, 1]
+    area2 = float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+    if area2 < 0:  # counter-clockwise on screen (y down): reverse
+        outline = outline[::-1]
+    top = outline[:, 1].min()
+    near_top = np.flatnonzero(outline[:, 1] <= top + 0.5)
+    # among the topmost points take the middle one, so flat tops start at their centre
+    cx = outline[near_top, 0].mean()
+    start = near_top[np.argmin(np.abs(outline[near_top, 0] - cx))]
+    return np.roll(outline, -int(start), axis=0)
+
+
+def _resample_polygon(points: np.ndarray, n: int, closed: bool) -> np.ndarray:
+    pts = np.vstack([points, points[:1]]) if closed else points
+    seg = np.hypot(*np.diff(pts, axis=0).T)
+    t = np.concatenate([[0.0], np.cumsum(seg)])
+    u = np.linspace(0.0, t[-1], n, endpoint=not closed)
+    return np.column_stack([np.interp(u, t, pts[:, 0]), np.interp(u, t, pts[:, 1])])
+
+
+def render_preview(image_bgr: np.ndarray, template, *, n_normals: int = 24, half_width: float = 15.0) -> np.ndarray:
+    """Draw the curve (green), control polygon (blue) and measurement normals (yellow) over the frame."""
+    import cv2
+
+    from trackcli.shapes.spline import dense_polygon
+
+    basis = template.basis()
+    Q = template.Q
+    vis = image_bgr.copy()
+    scale = max(1, int(round(max(vis.shape[:2]) / 640)))
+    sampler = basis.sampler(basis.measurement_params(n_normals))
+    pts, nrm = sampler.points_normals(Q)
+
+    def ipts(p: np.ndarray) -> np.ndarray:
+        return np.round(np.asarray(p) * 16).astype(np.int32).reshape(-1, 1, 2)
+
+    for p, n in zip(pts, nrm):
+        a, b = p - half_width * n, p + half_width * n
+        cv2.line(vis, tuple(ipts(a)[0, 0]), tuple(ipts(b)[0, 0]), (0, 220, 255), scale, cv2.LINE_AA, shift=4)
+    cp = template.control_points
+    cv2.polylines(vis, [ipts(cp)], template.closed, (255, 120, 0), scale, cv2.LINE_AA, shift=4)
+    for c in cp:
+        cv2.circle(vis, tuple(ipts(c)[0, 0]), 3 * 16 * scale, (255, 120, 0), -1, cv2.LINE_AA, shift=4)
+    curve = dense_polygon(Q, basis)
+    cv2.polylines(vis, [ipts(curve)], template.closed, (0, 255, 0), 2 * scale, cv2.LINE_AA, shift=4)
+    for p in pts:
+        cv2.circle(vis, tuple(ipts(p)[0, 0]), 2 * 16 * scale, (0, 0, 255), -1, cv2.LINE_AA, shift=4)
+    return vis
+
+
+def record_template(path, image_bgr: np.ndarray, template, *, n_normals: int = 24, half_width: float = 15.0):
+    """Recording of a template over its frame: curve, control polygon, measurement normals."""
+    from trackcli.io.recording import Recording
+    from trackcli.shapes.spline import dense_polygon
+
+    basis = template.basis()
+    sampler = basis.sampler(basis.measurement_params(n_normals))
+    pts, nrm = sampler.points_normals(template.Q)
+    with Recording(path, blueprint="draw") as rec:
+        rec.set_frame(template.frame, 0.0)
+        rec.log_frame(image_bgr)
+        rec.log_segments("video/normals", pts - half_width * nrm, pts + half_width * nrm, color=(255, 220, 0))
+        rec.log_contour("video/control_polygon", template.control_points, color=(0, 120, 255), width=1.0,
+                        closed=template.closed)
+        rec.log_points("video/control_points", template.control_points, colors=(0, 120, 255), radii=3.0)
+        rec.log_contour("video/template", dense_polygon(template.Q, basis), color=(0, 255, 0), width=2.0,
+                        closed=template.closed)
+        rec.log_params("params", template.to_dict())
+    return path

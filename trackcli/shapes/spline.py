@@ -1,0 +1,634 @@
+"""B-spline curves: basis functions, batched evaluation, normals and the L2 metric.
+
+A curve is ``r(s) = U(s) Q`` with ``U(s) = diag(B(s)ᵀ, B(s)ᵀ)`` and ``Q = (Qx; Qy)`` the
+``2 Nq`` stacked control coordinates (AC ch 3, restated in SPEC §2).  Knots are uniform,
+one per unit of the parameter ``s``:
+
+- **closed** (periodic) curves have ``L = Nq`` spans and ``s`` wraps modulo ``L``;
+- **open** curves are clamped (end knots repeated ``degree + 1`` times) so that
+  ``r(0)`` and ``r(L)`` are the first and last control points; ``L = Nq - degree``.
+
+In both cases the span ``[i, i + 1)`` is shaped by control points ``i, ..., i + degree``
+(indices modulo ``Nq`` when closed).  "Order" in the book is ``degree + 1``; quadratic
+(degree 2) is the default.
+
+The metric matrix ``𝓑 = (1/L) ∫₀ᴸ B(s) B(s)ᵀ ds`` gives the mean-square distance between
+two curves along the parameter, ``(1/L) ∫ |r₁(s) − r₂(s)|² ds = (Q₁ − Q₂)ᵀ 𝒰 (Q₁ − Q₂)`` with
+``𝒰 = diag(𝓑, 𝓑)`` (AC eqs 8.5–8.6).  All integrals here are piecewise polynomial and are
+computed exactly by Gauss–Legendre quadrature with ``2·degree + 1`` nodes per span.
+
+Coordinates are image ``(x, y)`` with ``y`` pointing down (see :mod:`trackcli`).
+
+Normals (:meth:`CurveSampler.normals`) are unit vectors.  For a closed curve they point
+*outward* whatever the direction in which the control polygon runs; the decision uses the
+exact signed area of the curve.  For an open curve they point to the left of the direction
+of increasing ``s`` as seen on the screen (with ``y`` down): a curve running left to right
+has normals pointing up, towards smaller ``y``.  Formally ``n = (t_y, −t_x) / |t|`` for the
+tangent ``t = dr/ds``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+from scipy.interpolate import BSpline
+
+from trackcli.errors import ConfigError, DataError
+
+__all__ = [
+    "SplineBasis",
+    "CurveSampler",
+    "fit",
+    "polygon_area_centroid",
+    "curve_area_centroid",
+    "curve_centre",
+    "signed_area",
+    "dense_polygon",
+]
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True)
+class SplineBasis:
+    """Uniform B-spline basis of ``n_ctrl`` functions on ``s ∈ [0, L]``.
+
+    Parameters
+    ----------
+    n_ctrl : int
+        Number of control points ``Nq``.  At least ``degree + 1``.
+    degree : int, default 2
+        Polynomial degree (the book's order minus one), at least 1.
+    closed : bool, default True
+        Periodic (closed) curve if true, clamped open curve otherwise.
+
+    Attributes
+    ----------
+    L : int
+        Parameter length: ``Nq`` spans when closed, ``Nq - degree`` when open.
+    metric : ndarray of shape (Nq, Nq)
+        The metric matrix ``𝓑``.
+    U : ndarray of shape (2 Nq, 2 Nq)
+        ``diag(𝓑, 𝓑)``, the L2 metric on stacked control vectors.
+    """
+
+    n_ctrl: int
+    degree: int = 2
+    closed: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("n_ctrl", "degree"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise ConfigError(f"spline {name} must be an integer, got {value!r}")
+            object.__setattr__(self, name, int(value))
+        if not isinstance(self.closed, (bool, np.bool_)):
+            raise ConfigError(f"spline closed must be true or false, got {self.closed!r}")
+        object.__setattr__(self, "closed", bool(self.closed))
+        if self.degree < 1:
+            raise ConfigError(f"spline degree must be at least 1, got {self.degree}")
+        if self.n_ctrl < self.degree + 1:
+            raise ConfigError(
+                f"a degree-{self.degree} spline needs at least {self.degree + 1} control "
+                f"points, got n_ctrl={self.n_ctrl}"
+            )
+
+    # ----------------------------------------------------------------- geometry of s
+    @property
+    def L(self) -> int:
+        """Length of the parameter range (number of spans)."""
+        return self.n_ctrl if self.closed else self.n_ctrl - self.degree
+
+    @property
+    def Nq(self) -> int:
+        """Number of control points (alias of ``n_ctrl``)."""
+        return self.n_ctrl
+
+    def measurement_params(self, M: int) -> np.ndarray:
+        """``M`` parameter values equally spaced along the curve.
+
+        Closed curves: ``s_i = i L / M``.  Open curves: the centres of ``M`` equal
+        parameter intervals, ``s_i = (i + ½) L / M``, so the two ends are treated alike.
+
+        Returns
+        -------
+        s : ndarray of shape (M,)
+        """
+        if isinstance(M, bool) or not isinstance(M, (int, np.integer)) or M < 1:
+            raise ConfigError(f"number of measurement points must be a positive integer, got {M!r}")
+        i = np.arange(M, dtype=float)
+        if self.closed:
+            return i * (self.L / M)
+        return (i + 0.5) * (self.L / M)
+
+    def _wrap(self, s) -> np.ndarray:
+        s = np.asarray(s, dtype=float)
+        if not np.all(np.isfinite(s)):
+            raise DataError("spline parameter values must be finite")
+        L = self.L
+        if self.closed:
+            s = np.mod(s, L)
+            return np.where(s >= L, 0.0, s)  # np.mod(-1e-18, L) == L
+        tol = 1e-9 * L
+        if s.size and (s.min() < -tol or s.max() > L + tol):
+            raise DataError(
+                f"open-spline parameter out of range: got values in "
+                f"[{s.min():g}, {s.max():g}], valid range is [0, {L}]"
+            )
+        return np.clip(s, 0.0, L)
+
+    # ---------------------------------------------------------------- basis functions
+    @cached_property
+    def _splines(self) -> tuple[BSpline, ...]:
+        """Vector-valued splines whose components are the basis functions (and derivatives)."""
+        d, N = self.degree, self.n_ctrl
+        if self.closed:
+            knots = np.arange(-d, N + d + 1, dtype=float)
+            coef = np.zeros((N + d, N))
+            coef[np.arange(N + d), np.arange(N + d) % N] = 1.0
+        else:
+            L = self.L
+            inner = np.arange(L + 1, dtype=float)
+            knots = np.concatenate([np.zeros(d), inner, np.full(d, float(L))])
+            coef = np.eye(N)
+        spl = BSpline(knots, coef, d, extrapolate=True)
+        return tuple([spl] + [spl.derivative(nu) for nu in range(1, d + 1)])
+
+    def basis(self, s) -> np.ndarray:
+        """Basis values ``B(s)ᵀ``.
+
+        Parameters
+        ----------
+        s : array_like of shape (M,)
+            Parameter values.  Wrapped modulo ``L`` when closed; must lie in ``[0, L]``
+            when open.
+
+        Returns
+        -------
+        ndarray of shape (M, Nq)
+            Row ``m`` holds ``B(s_m)ᵀ``; rows sum to one.
+        """
+        return self.basis_derivative(s, 0)
+
+    def basis_derivative(self, s, nu: int = 1) -> np.ndarray:
+        """Derivatives ``dᵛB(s)ᵀ/dsᵛ`` of the basis, shape ``s.shape + (Nq,)``.
+
+        ``nu`` may be 0 (the basis itself) up to ``degree``.
+        """
+        valid = isinstance(nu, (int, np.integer)) and not isinstance(nu, bool)
+        if not valid or not 0 <= nu <= self.degree:
+            raise ConfigError(
+                f"derivative order must be an integer in [0, {self.degree}], got {nu!r}"
+            )
+        s = self._wrap(s)
+        out = self._splines[nu](s.ravel())
+        return out.reshape(s.shape + (self.n_ctrl,))
+
+    # ------------------------------------------------------------- exact integrals
+    @cached_property
+    def _quadrature(self) -> tuple[np.ndarray, np.ndarray]:
+        """Gauss–Legendre nodes and weights on every span: exact for degree ≤ 4·degree+1."""
+        x, w = np.polynomial.legendre.leggauss(2 * self.degree + 1)
+        starts = np.arange(self.L, dtype=float)[:, None]
+        nodes = (starts + 0.5 * (x + 1.0)[None, :]).ravel()
+        weights = np.tile(0.5 * w, self.L)
+        return _readonly(nodes), _readonly(weights)
+
+    @cached_property
+    def metric(self) -> np.ndarray:
+        """Metric matrix ``𝓑 = (1/L) ∫ B Bᵀ ds``, shape (Nq, Nq), symmetric positive definite."""
+        s, w = self._quadrature
+        B = self.basis(s)
+        return _readonly((B.T * w) @ B / self.L)
+
+    @cached_property
+    def U(self) -> np.ndarray:
+        """``𝒰 = diag(𝓑, 𝓑)``, shape (2 Nq, 2 Nq)."""
+        N = self.n_ctrl
+        out = np.zeros((2 * N, 2 * N))
+        out[:N, :N] = self.metric
+        out[N:, N:] = self.metric
+        return _readonly(out)
+
+    @cached_property
+    def mean_weights(self) -> np.ndarray:
+        """``(1/L) ∫ B(s) ds``, shape (Nq,): the parameter-mean of a curve is ``wᵀQx, wᵀQy``."""
+        s, w = self._quadrature
+        return _readonly(w @ self.basis(s) / self.L)
+
+    @cached_property
+    def area_matrix(self) -> np.ndarray:
+        """Antisymmetric ``K`` with signed area ``A = ½ Qxᵀ K Qy`` (closed curves), shape (Nq, Nq).
+
+        ``K = G − Gᵀ`` with ``G = ∫ B(s) B'(s)ᵀ ds``, from ``A = ½ ∮ (x y' − y x') ds``.
+        """
+        s, w = self._quadrature
+        G = (self.basis(s).T * w) @ self.basis_derivative(s, 1)
+        return _readonly(G - G.T)
+
+    def sampler(self, s) -> CurveSampler:
+        """A :class:`CurveSampler` at parameters ``s`` (shape (M,))."""
+        return CurveSampler(self, s)
+
+
+def _split(Q, Nq: int) -> tuple[np.ndarray, np.ndarray]:
+    Q = np.asarray(Q, dtype=float)
+    if Q.ndim < 1 or Q.shape[-1] != 2 * Nq:
+        raise DataError(
+            f"control vectors must have last dimension 2*Nq = {2 * Nq}, got shape {Q.shape}"
+        )
+    return Q[..., :Nq], Q[..., Nq:]
+
+
+def signed_area(Q, basis: SplineBasis) -> np.ndarray:
+    """Exact signed area enclosed by closed spline curves.
+
+    Positive when the curve turns from +x towards +y (clockwise on the screen, since
+    ``y`` points down).  For an open curve the value is ``½ ∫ (x y' − y x') ds`` along
+    the curve alone, without the closing chord.
+
+    Parameters
+    ----------
+    Q : array_like of shape (..., 2 Nq)
+
+    Returns
+    -------
+    ndarray of shape (...)
+    """
+    Qx, Qy = _split(Q, basis.n_ctrl)
+    return 0.5 * np.sum((Qx @ basis.area_matrix) * Qy, axis=-1)
+
+
+@dataclass(frozen=True, eq=False)
+class CurveSampler:
+    """Precomputed basis matrices for evaluating many curves at fixed parameters.
+
+    Evaluation is a pair of matrix products, batched over any leading axes of ``Q``; this
+    is what the particle filter calls for thousands of curves per frame.
+
+    Parameters
+    ----------
+    basis : SplineBasis
+    s : array_like of shape (M,)
+        Parameter values (wrapped when closed).
+
+    Attributes
+    ----------
+    B : ndarray of shape (M, Nq)
+        ``B(s_i)ᵀ`` row by row.
+    dB : ndarray of shape (M, Nq)
+        ``B'(s_i)ᵀ`` row by row.
+    """
+
+    basis: SplineBasis
+    s: np.ndarray
+    B: np.ndarray = field(init=False, repr=False)
+    dB: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.basis, SplineBasis):
+            raise ConfigError(f"CurveSampler needs a SplineBasis, got {type(self.basis).__name__}")
+        s = np.array(self.s, dtype=float)
+        if s.ndim != 1 or s.size == 0:
+            raise DataError(
+                f"sampler parameters must be a non-empty 1-D array, got shape {s.shape}"
+            )
+        object.__setattr__(self, "s", _readonly(s))
+        object.__setattr__(self, "B", _readonly(self.basis.basis(s)))
+        object.__setattr__(self, "dB", _readonly(self.basis.basis_derivative(s, 1)))
+
+    @property
+    def M(self) -> int:
+        """Number of sample points."""
+        return self.s.size
+
+    def points(self, Q) -> np.ndarray:
+        """Curve points ``r(s_i)``: ``Q`` (..., 2 Nq) → (..., M, 2)."""
+        Qx, Qy = _split(Q, self.basis.n_ctrl)
+        return np.stack((Qx @ self.B.T, Qy @ self.B.T), axis=-1)
+
+    def tangents(self, Q) -> np.ndarray:
+        """Unnormalised tangents ``dr/ds`` at ``s_i``: (..., 2 Nq) → (..., M, 2)."""
+        Qx, Qy = _split(Q, self.basis.n_ctrl)
+        return np.stack((Qx @ self.dB.T, Qy @ self.dB.T), axis=-1)
+
+    def normals(self, Q) -> np.ndarray:
+        """Unit normals at ``s_i``: (..., 2 Nq) → (..., M, 2).
+
+        Outward for closed curves, to the left of the direction of travel (on screen) for
+        open curves; see the module docstring.  Where the tangent vanishes (coincident
+        control points) the normal is the zero vector.
+        """
+        Qx, Qy = _split(Q, self.basis.n_ctrl)
+        tx = Qx @ self.dB.T
+        ty = Qy @ self.dB.T
+        norm = np.hypot(tx, ty)
+        inv = np.divide(1.0, norm, out=np.zeros_like(norm), where=norm > 0)
+        if self.basis.closed:
+            area = 0.5 * np.sum((Qx @ self.basis.area_matrix) * Qy, axis=-1)
+            inv = inv * np.where(area >= 0, 1.0, -1.0)[..., None]
+        return np.stack((ty * inv, -tx * inv), axis=-1)
+
+    def points_normals(self, Q) -> tuple[np.ndarray, np.ndarray]:
+        """``(points(Q), normals(Q))``, each of shape (..., M, 2)."""
+        return self.points(Q), self.normals(Q)
+
+
+def dense_polygon(Q, basis: SplineBasis, n: int | None = None) -> np.ndarray:
+    """Points densely along curves, for drawing and masks.
+
+    Parameters
+    ----------
+    Q : array_like of shape (..., 2 Nq)
+    basis : SplineBasis
+    n : int, optional
+        Number of points; default ``max(64, 16 L)``.  Closed curves get ``n`` points at
+        ``s = i L / n`` (the first point is not repeated at the end); open curves get ``n``
+        points from ``s = 0`` to ``s = L`` inclusive.
+
+    Returns
+    -------
+    ndarray of shape (..., n, 2)
+    """
+    if n is None:
+        n = max(64, 16 * basis.L)
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
+        raise ConfigError(f"dense polygon needs an integer n >= 2, got {n!r}")
+    if basis.closed:
+        s = np.arange(n) * (basis.L / n)
+    else:
+        s = np.linspace(0.0, basis.L, n)
+    return CurveSampler(basis, s).points(Q)
+
+
+def polygon_area_centroid(points) -> tuple[np.ndarray, np.ndarray]:
+    """Signed area and area centroid of closed polygons (shoelace formula).
+
+    Parameters
+    ----------
+    points : array_like of shape (..., P, 2)
+        Vertices in order; the polygon closes from the last back to the first.
+
+    Returns
+    -------
+    area : ndarray of shape (...)
+        Signed area, positive when the vertices turn from +x towards +y.
+    centroid : ndarray of shape (..., 2)
+        Area centroid; the vertex mean where the area is zero (degenerate polygons).
+    """
+    p = np.asarray(points, dtype=float)
+    if p.ndim < 2 or p.shape[-1] != 2 or p.shape[-2] < 1:
+        raise DataError(f"polygon points must have shape (..., P, 2), got {p.shape}")
+    x, y = p[..., 0], p[..., 1]
+    # Subtract the vertex mean first: same result, far less cancellation.
+    mean = p.mean(axis=-2)
+    x = x - mean[..., None, 0]
+    y = y - mean[..., None, 1]
+    xn, yn = np.roll(x, -1, axis=-1), np.roll(y, -1, axis=-1)
+    cross = x * yn - xn * y
+    area = 0.5 * cross.sum(axis=-1)
+    cx = ((x + xn) * cross).sum(axis=-1)
+    cy = ((y + yn) * cross).sum(axis=-1)
+    size2 = np.max(x * x + y * y, axis=-1)
+    ok = np.abs(area) > 1e-12 * np.maximum(size2, 1e-300)
+    denom = np.where(ok, 6.0 * area, 1.0)
+    centroid = np.stack(
+        (np.where(ok, cx / denom, 0.0), np.where(ok, cy / denom, 0.0)), axis=-1
+    ) + mean
+    return area, centroid
+
+
+def curve_area_centroid(Q, basis: SplineBasis) -> tuple[np.ndarray, np.ndarray]:
+    """Exact signed area and area centroid of closed spline curves.
+
+    Uses ``A = ½ ∮ (x y' − y x') ds`` and ``c = (1 / 3A) ∮ r (x y' − y x') ds`` (Green's
+    theorem), integrated exactly span by span.  Where the area vanishes the centroid falls
+    back to the parameter-mean of the curve (:func:`curve_centre` of an open curve).
+
+    Parameters
+    ----------
+    Q : array_like of shape (..., 2 Nq)
+
+    Returns
+    -------
+    area : ndarray of shape (...)
+    centroid : ndarray of shape (..., 2)
+    """
+    Qx, Qy = _split(Q, basis.n_ctrl)
+    s, w = basis._quadrature
+    B = basis.basis(s)
+    dB = basis.basis_derivative(s, 1)
+    mx = Qx @ basis.mean_weights
+    my = Qy @ basis.mean_weights
+    x = Qx @ B.T - mx[..., None]
+    y = Qy @ B.T - my[..., None]
+    cross = x * (Qy @ dB.T) - y * (Qx @ dB.T)
+    area = 0.5 * (cross @ w)
+    size2 = np.max(x**2 + y**2, axis=-1)
+    ok = np.abs(area) > 1e-12 * np.maximum(size2, 1e-300)
+    denom = np.where(ok, 3.0 * area, 1.0)
+    cx = np.where(ok, ((x * cross) @ w) / denom, 0.0) + mx
+    cy = np.where(ok, ((y * cross) @ w) / denom, 0.0) + my
+    return area, np.stack((cx, cy), axis=-1)
+
+
+def curve_centre(Q, basis: SplineBasis) -> np.ndarray:
+    """A natural anchor point of each curve, shape (..., 2).
+
+    Closed curves: the exact area centroid (:func:`curve_area_centroid`).  Open curves:
+    the parameter-mean ``(1/L) ∫ r(s) ds``.  Both move with the curve under any affine map,
+    so a shape-space built about this point rotates and scales the object about itself.
+    """
+    if basis.closed:
+        return curve_area_centroid(Q, basis)[1]
+    Qx, Qy = _split(Q, basis.n_ctrl)
+    return np.stack((Qx @ basis.mean_weights, Qy @ basis.mean_weights), axis=-1)
+
+
+def _second_difference(n: int, closed: bool) -> np.ndarray:
+    if closed:
+        D = -2.0 * np.eye(n) + np.roll(np.eye(n), 1, axis=1) + np.roll(np.eye(n), -1, axis=1)
+        return D
+    if n < 3:
+        return np.zeros((0, n))
+    D = np.zeros((n - 2, n))
+    i = np.arange(n - 2)
+    D[i, i] = 1.0
+    D[i, i + 1] = -2.0
+    D[i, i + 2] = 1.0
+    return D
+
+
+def fit(
+    points,
+    n_ctrl: int,
+    *,
+    degree: int = 2,
+    closed: bool = True,
+    refine: int = 10,
+    smoothing: float = 1e-9,
+) -> np.ndarray:
+    """Least-squares B-spline through an ordered list of points.
+
+    The points are first parametrised by chord length (for a closed curve the chord from
+    the last point back to the first is included, and a last point equal to the first is
+    dropped) and the control points solve the linear least-squares problem
+    ``min Σ_p |U(s_p) Q − p|² + λ |D Q|²``.  ``D`` takes second differences of the control
+    polygon and ``λ = smoothing · tr(AᵀA) / 2Nq`` is tiny by default: it only keeps the
+    problem well posed when some span holds no data.
+
+    Up to ``refine`` Gauss–Newton iterations then minimise the true point-to-curve
+    distances, control points and parameters together: each ``s_p`` moves to the foot of
+    the perpendicular from its point, and the control points minimise the distances to the
+    tangent lines there (plus a light tangential term, weight 1e-3, for conditioning).  The
+    ends of an open curve stay pinned to the first and last points.  Steps are halved until
+    the distances improve.  This removes the bias of the chord-length guess, so points
+    sampled from a spline give back that spline.
+
+    Parameters
+    ----------
+    points : array_like of shape (P, 2)
+        Ordered ``(x, y)`` points along the curve; at least ``n_ctrl`` distinct ones.
+    n_ctrl : int
+        Number of control points ``Nq``.
+    degree : int, default 2
+    closed : bool, default True
+    refine : int, default 10
+        Maximum Gauss–Newton iterations (0 keeps the chord-length fit).
+    smoothing : float, default 1e-9
+        Relative weight of the second-difference regulariser, ``>= 0``.
+
+    Returns
+    -------
+    Q : ndarray of shape (2 Nq,)
+        Stacked control vector ``(Qx; Qy)``.
+
+    Raises
+    ------
+    ConfigError
+        Invalid ``n_ctrl``, ``degree``, ``refine`` or ``smoothing``.
+    DataError
+        Points of the wrong shape, non-finite, too few, or all coincident.
+    """
+    basis = SplineBasis(n_ctrl, degree, closed)
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 2:
+        raise DataError(f"points to fit must have shape (P, 2), got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise DataError("points to fit contain NaN or infinite values")
+    if isinstance(refine, bool) or not isinstance(refine, (int, np.integer)) or refine < 0:
+        raise ConfigError(f"refine must be a non-negative integer, got {refine!r}")
+    if not np.isfinite(smoothing) or smoothing < 0:
+        raise ConfigError(f"smoothing must be a finite number >= 0, got {smoothing!r}")
+    if closed and len(p) > 1 and np.array_equal(p[0], p[-1]):
+        p = p[:-1]
+    n_distinct = len(np.unique(p, axis=0))
+    if n_distinct < n_ctrl:
+        raise DataError(
+            f"fitting {n_ctrl} control points needs at least {n_ctrl} distinct points, "
+            f"got {n_distinct}"
+        )
+    closing = p[:1] if closed else p[-1:]
+    chords = np.linalg.norm(np.diff(p, axis=0, append=closing), axis=1)
+    total = chords.sum()
+    if not total > 0:
+        raise DataError("points to fit are all coincident")
+    L = basis.L
+    cum = np.concatenate([[0.0], np.cumsum(chords)])
+    s = L * cum[: len(p)] / total
+    if not closed:
+        s[-1] = L
+
+    D = _second_difference(n_ctrl, closed)
+    N = n_ctrl
+    R = np.zeros((2 * len(D), 2 * N))
+    R[: len(D), :N] = D
+    R[len(D) :, N:] = D
+
+    def solve(A: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+        AtA = A.T @ A
+        lam = smoothing * np.trace(AtA) / (2 * N)
+        try:
+            return np.linalg.solve(AtA + lam * (R.T @ R), A.T @ rhs)
+        except np.linalg.LinAlgError:
+            raise DataError(
+                "the spline fit is singular: the points leave some control points "
+                "undetermined; use fewer control points or smoothing > 0"
+            ) from None
+
+    # Chord-length start: an ordinary linear least-squares fit.
+    B = basis.basis(s)
+    zero = np.zeros_like(B)
+    A = np.block([[B, zero], [zero, B]])
+    Q = solve(A, np.concatenate([p[:, 0], p[:, 1]]))
+    s = _foot_points(basis, Q, p, s)
+    cost = _fit_cost(basis, Q, p, s)
+    # Gauss–Newton on control points and parameters together.  Eliminating each s_p
+    # leaves the distance from p to the tangent line at its foot point; a light
+    # tangential term keeps the system well posed.  The ends of an open curve are
+    # pinned to the first and last points (s = 0 and s = L) with full residuals.
+    wt = np.full(len(p), _TANGENT_WEIGHT)
+    if not closed:
+        wt[[0, -1]] = 1.0
+    for _ in range(refine):
+        B = basis.basis(s)
+        t = basis.basis_derivative(s, 1) @ np.stack((Q[:N], Q[N:]), axis=1)
+        t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-300)
+        n = np.stack((t[:, 1], -t[:, 0]), axis=1)
+        rows, rhs = [], []
+        for direction, weight in ((n, 1.0), (t, wt)):
+            w = np.broadcast_to(weight, (len(p),))[:, None]
+            rows.append(w * np.hstack((direction[:, :1] * B, direction[:, 1:] * B)))
+            rhs.append(w[:, 0] * np.sum(direction * p, axis=1))
+        step = solve(np.vstack(rows), np.concatenate(rhs)) - Q
+        for _ in range(8):  # halve the step until the true distances improve
+            Q_new = Q + step
+            s_new = _foot_points(basis, Q_new, p, s)
+            cost_new = _fit_cost(basis, Q_new, p, s_new)
+            if cost_new < cost:
+                break
+            step = 0.5 * step
+        else:
+            break
+        converged = cost - cost_new <= 1e-12 * cost
+        Q, s, cost = Q_new, s_new, cost_new
+        if converged:
+            break
+    return Q
+
+
+def _fit_cost(basis: SplineBasis, Q: np.ndarray, p: np.ndarray, s: np.ndarray) -> float:
+    N = basis.n_ctrl
+    r = basis.basis(s) @ np.stack((Q[:N], Q[N:]), axis=1) - p
+    return float(np.sum(r * r))
+
+
+_TANGENT_WEIGHT = 1e-3
+
+
+def _foot_points(basis: SplineBasis, Q: np.ndarray, p: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Move each ``s_p`` towards the closest point of the curve to ``p`` (Newton steps)."""
+    N = basis.n_ctrl
+    C = np.stack((Q[:N], Q[N:]), axis=1)
+    L = basis.L
+    for _ in range(8):
+        r = basis.basis(s) @ C - p
+        d1 = basis.basis_derivative(s, 1) @ C
+        d2 = basis.basis_derivative(s, 2) @ C if basis.degree >= 2 else np.zeros_like(d1)
+        gn = np.sum(d1 * d1, axis=1)
+        curv = gn + np.sum(r * d2, axis=1)
+        curv = np.where(curv > 0.1 * gn, curv, gn)  # fall back to Gauss–Newton
+        grad = np.sum(r * d1, axis=1)
+        step = np.divide(grad, curv, out=np.zeros_like(grad), where=curv > 0)
+        s = s - np.clip(step, -0.5, 0.5)
+        s = np.mod(s, L) if basis.closed else np.clip(s, 0.0, L)
+        if basis.closed:
+            s = np.where(s >= L, 0.0, s)
+        else:
+            s[0], s[-1] = 0.0, L
+    return s
