@@ -1,7 +1,7 @@
 """Speed of the Kalman contour tracker, CONDENSATION and ``learn`` on the sample training clip.
 
 Trackers are timed alone: the frames of ``sample_data/train.mp4`` (480 x 360, 260 frames) are
-decoded into a list first, and the generator of :mod:`trackcli.trackers.tracking` is run over that
+decoded into a list first, and the frame loop of :mod:`trackcli.trackers.base` is run over that
 list with nothing written or recorded.  The same frames resized to 640 x 480 (with the
 template scaled to match) give the cost at VGA size.  Settings are the defaults
 (``configs/default.yaml``): 24 normals, similarity shape-space, hand-set dynamics;
@@ -48,7 +48,10 @@ import numpy as np  # noqa: E402
 from trackcli.shapes import draw  # noqa: E402
 from trackcli.io.config import load_settings  # noqa: E402
 from trackcli.sample_data import load_truth  # noqa: E402
-from trackcli.trackers.tracking import build_space, handset_dynamics, track_condensation, track_kalman  # noqa: E402
+from trackcli.shapes.outline import build_space  # noqa: E402
+from trackcli.dynamics.handset import handset_dynamics  # noqa: E402
+from trackcli.trackers.condensation_tracker import track_condensation  # noqa: E402
+from trackcli.trackers.kalman_tracker import track_kalman  # noqa: E402
 from trackcli.io.video import open_video  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent

@@ -256,19 +256,19 @@ def test_rerun_skips_complete_clips_and_force_runs_them_again(inputs, tmp_path):
 
 
 def test_an_interrupted_job_leaves_no_partial_output(inputs, tmp_path, monkeypatch):
-    from trackcli.trackers import tracking
+    from trackcli.trackers.condensation_tracker import CondensationTracker
 
-    real = tracking.track_condensation
+    real = CondensationTracker.step
     seen = []
 
-    def interrupted(*args, **kwargs):
-        for k, r in enumerate(real(*args, **kwargs)):
-            seen.append(k)
-            if k == 4:
-                raise KeyboardInterrupt
-            yield r
+    def interrupted(self, frame):
+        k = len(seen)
+        seen.append(k)
+        if k == 4:
+            raise KeyboardInterrupt
+        return real(self, frame)
 
-    monkeypatch.setattr(tracking, "track_condensation", interrupted)
+    monkeypatch.setattr(CondensationTracker, "step", interrupted)
     manifest = write_manifest(tmp_path / "m", inputs, [sample_entries(inputs)[0]])
     out = tmp_path / "out"
     result = run(["batch", manifest, "-o", out], 130)

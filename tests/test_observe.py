@@ -13,7 +13,9 @@ from trackcli.observe import discriminant as observe
 from trackcli.io.config import CondensationSettings, DynamicsSettings, MeasurementSettings, SubspaceDynamics
 from trackcli.shapes.shape_space import similarity
 from trackcli.shapes.spline import SplineBasis
-from trackcli.trackers.tracking import Presence, contour_summary, handset_dynamics, measurement_sampler, object_size
+from trackcli.observe.presence import Presence
+from trackcli.shapes.outline import contour_summary, measurement_sampler, object_size
+from trackcli.dynamics.handset import handset_dynamics
 
 W, H = 320, 240
 M = 24

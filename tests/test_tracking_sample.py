@@ -37,7 +37,7 @@ from trackcli.sample_data import load_truth
 from trackcli.shapes.shape_space import similarity
 from trackcli.shapes.spline import SplineBasis
 from trackcli.shapes.template import load_template
-from trackcli.trackers.tracking import track_condensation
+from trackcli.trackers.condensation_tracker import track_condensation
 from trackcli.io.video import open_video
 
 CLUTTER = CONFIGS / "sample-clutter.yaml"

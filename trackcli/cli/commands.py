@@ -15,6 +15,7 @@ import click
 
 from trackcli import __version__
 from trackcli.errors import TrackcliError
+from trackcli.trackers import TRACKERS
 
 log = logging.getLogger("trackcli")
 
@@ -342,7 +343,7 @@ def _video_overrides(fps, start, end, step) -> dict:
 @click.option("--template", type=click.Path(dir_okay=False),
               help="Template drawn on this clip: the initial placement (with --model) or, alone, "
                    "the shape to track with hand-set dynamics.")
-@click.option("--tracker", type=click.Choice(["condensation", "kalman"]), default="condensation", show_default=True,
+@click.option("--tracker", type=click.Choice(list(TRACKERS)), default="condensation", show_default=True,
               help="CONDENSATION (particle filter, robust to clutter) or the Kalman contour tracker.")
 @click.option("--particles", type=click.IntRange(min=1), help="CONDENSATION sample-set size N (condensation.particles).")
 @click.option("--seed", type=click.IntRange(min=0), help="Random seed (same seed, same numbers).")

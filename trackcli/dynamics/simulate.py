@@ -14,7 +14,7 @@ import numpy as np
 
 from trackcli.dynamics.model import Model
 from trackcli.io.outputs import atomic_path
-from trackcli.trackers.tracking import contour_summary
+from trackcli.shapes.outline import contour_summary
 
 
 def simulate_paths(model: Model, n_frames: int, n_paths: int, rng: np.random.Generator) -> np.ndarray:

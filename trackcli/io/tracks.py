@@ -75,7 +75,7 @@ def _fmt(v: float, digits: int = 6) -> str:
 
 
 def row(result, ) -> list[str]:
-    """CSV cells of one :class:`~trackcli.trackers.tracking.FrameResult`."""
+    """CSV cells of one :class:`~trackcli.trackers.base.FrameResult` (without its extras and outline)."""
     cells = [str(result.index), f"{result.time:.6f}"]
     cells += [_fmt(float(v), 8) for v in result.X]
     cells += [_fmt(float(v), 6) for v in result.X_std]
@@ -136,17 +136,21 @@ class TrackWriter:
     With ``outline`` (an :class:`OutlineColumns`), every row ends with the outline columns.
     """
 
-    def __init__(self, path: str | Path, names: Sequence[str], outline: OutlineColumns | None = None):
+    def __init__(self, path: str | Path, names: Sequence[str], outline: OutlineColumns | None = None,
+                 extra: Sequence[str] | None = None):
         self.path = Path(path)
         self._outline = outline
+        self._extra = list(extra or [])
         self._ctx = atomic_path(self.path)
         tmp = self._ctx.__enter__()
         self._fh = open(tmp, "w", newline="", encoding="utf-8")
         self._csv = csv.writer(self._fh)
-        self._csv.writerow(header(names) + (outline.header() if outline else []))
+        self._csv.writerow(header(names) + self._extra + (outline.header() if outline else []))
 
     def write(self, result) -> None:
         cells = row(result)
+        if self._extra:
+            cells += [_fmt(float(result.extra.get(e, math.nan)), 6) for e in self._extra]
         if self._outline is not None:
             cells += self._outline.cells(result.X)
         self._csv.writerow(cells)
@@ -242,14 +246,6 @@ def read_outlines(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     if not frames:
         raise InputError(f"{p}: the track has no rows")
     return np.asarray(frames), np.asarray(outlines, dtype=float).reshape(len(frames), n, 2), np.asarray(closed)
-
-
-def write_rows(path: str | Path, names: Sequence[str], results: Iterable) -> Path:
-    """Write all ``results`` at once."""
-    with TrackWriter(path, names) as w:
-        for r in results:
-            w.write(r)
-    return Path(path)
 
 
 def read_track_uncertainty(path: str | Path, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:

@@ -5,7 +5,7 @@ open the clip, decide what is tracked (a learned model placed by a template draw
 clip, a model alone, or a template with hand-set dynamics), call :func:`run_clip`, and write
 the effective configuration with the results (a run that fails writes none of them).
 
-:func:`run_clip` drives one of the frame loops of :mod:`trackcli.trackers.tracking`, writes every
+:func:`run_clip` drives a tracker through the frame loop of :mod:`trackcli.trackers.base`, writes every
 result to the track CSV as it arrives, mirrors it into a Rerun recording, and returns a
 :class:`RunSummary` (also the source of the one-line summary the command prints).
 All files are written atomically: an interrupted run leaves no half-written file.
@@ -30,11 +30,11 @@ from trackcli.errors import ConfigError, DataError, TemplateError
 from trackcli.io.outputs import output_dir, refuse_overwriting_inputs, write_text
 from trackcli.shapes.shape_space import ShapeSpace
 from trackcli.io.tracks import OutlineColumns, TrackWriter
+from trackcli.trackers import TRACKERS, tracker_class  # noqa: F401  (TRACKERS: the names a batch accepts)
 
 log = logging.getLogger(__name__)
 
 #: The trackers ``track_clip`` can run.
-TRACKERS = ("condensation", "kalman")
 
 #: Colours (RGB) used in recordings.
 ESTIMATE_RGB = (255, 60, 40)
@@ -134,6 +134,7 @@ def run_clip(
     smoother: Any = None,
     smooth_csv_path: Path | None = None,
     properties: dict[str, Any] | None = None,
+    extra_columns: list[str] | None = None,
 ) -> RunSummary:
     """Track ``video`` with ``make_tracker(frames)`` and write the outputs.
 
@@ -161,6 +162,9 @@ def run_clip(
         A consumer of the results (:mod:`trackcli.trackers.smoothing`: ``push(result)`` and
         ``finish()`` return smoothed results); they go to ``smooth_csv_path`` in the track
         format and, as a second contour (``video/smoothed``), to the recording.
+    extra_columns : list of str, optional
+        Names of the tracker's own values (:attr:`FrameResult.extra`): CSV columns after
+        the common ones, and time series ``series/extra/NAME`` in the recording.
     """
     if outline_points == 1:
         raise ConfigError("output.outline_points: expected 0 (no outline) or at least 2 points, got 1")
@@ -172,12 +176,14 @@ def run_clip(
     found_sum = 0.0
     ess_vals: list[float] = []
     series: dict[str, list] = {k: [] for k in ("frame", "time", "tx", "ty", "cx", "cy", "found", "gate", "ess", "loglik")}
+    extra_names = list(extra_columns or [])
+    extras: list[list[float]] = []
     hist_rows: list[np.ndarray] = []
     hist_edges = None
     rec_ctx = None
     rec = None
     log_frame = None
-    smooth_ctx = TrackWriter(smooth_csv_path, space.names, outline) if smoother is not None else contextlib.nullcontext()
+    smooth_ctx = TrackWriter(smooth_csv_path, space.names, outline, extra_columns) if smoother is not None else contextlib.nullcontext()
     smoothed_centroids: list[tuple[int, float, float, float]] = []
 
     def write_smoothed(done: list[Any]) -> None:
@@ -195,7 +201,7 @@ def run_clip(
             rec_ctx = Recording(rrd_path, app_id="trackcli", recording_id=recording_id, blueprint="track",
                                 properties=properties)
             rec = rec_ctx.__enter__()
-        with TrackWriter(csv_path, space.names, outline) as writer, smooth_ctx as smooth_writer:
+        with TrackWriter(csv_path, space.names, outline, extra_columns) as writer, smooth_ctx as smooth_writer:
             if rec is not None:
                 rec.log_params("params", params)
                 from trackcli.io.recording import frame_storage
@@ -218,6 +224,8 @@ def run_clip(
                                  ("cx", r.centroid[0]), ("cy", r.centroid[1]), ("found", r.n_found),
                                  ("gate", r.gate_rms), ("ess", r.ess), ("loglik", r.loglik)):
                     series[key].append(val)
+                if extra_names:
+                    extras.append([float(r.extra.get(e, np.nan)) for e in extra_names])
                 if "histogram" in r.display:
                     hist_rows.append(np.asarray(r.display["histogram"], dtype=float))
                     hist_edges = r.display["hist_edges"]
@@ -234,6 +242,11 @@ def run_clip(
             wall = time.perf_counter() - t_start
             if rec is not None:
                 _record_series(rec, series, hist_rows, hist_edges)
+                if extras:
+                    f = np.asarray(series["frame"], dtype=np.int64)
+                    t = np.asarray(series["time"], dtype=float)
+                    for j, e in enumerate(extra_names):
+                        rec.send_series(f"series/extra/{e}", f, t, np.asarray(extras, dtype=float)[:, j], names=e)
                 if smoothed_centroids:
                     c = np.asarray(smoothed_centroids)
                     rec.send_series("series/centroid_smoothed", c[:, 0].astype(np.int64), c[:, 1], c[:, 2:],
@@ -358,7 +371,7 @@ def template_space(template: Any, path: str | os.PathLike[str], kind: str) -> Sh
     A template whose control points (nearly) coincide or lie on a line cannot carry a
     similarity or affine shape-space: its columns would be linearly dependent.
     """
-    from trackcli.trackers.tracking import build_space
+    from trackcli.shapes.outline import build_space
 
     try:
         return build_space(template, kind)
@@ -392,7 +405,7 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
     """
     from trackcli.dynamics.model import load_model, place_dynamics, place_space
     from trackcli.shapes.template import load_template
-    from trackcli.trackers.tracking import handset_dynamics
+    from trackcli.dynamics.handset import handset_dynamics
 
     if not model and not template:
         raise ConfigError("nothing to track: give a model, a template, or both")
@@ -504,11 +517,10 @@ def track_clip(
     VideoError, ModelError, TemplateError
         An input cannot be read or does not fit this clip.
     """
-    from trackcli.trackers import tracking
     from trackcli.io.video import open_video
+    from trackcli.trackers.base import run_tracker
 
-    if tracker not in TRACKERS:
-        raise ConfigError(f"tracker: expected one of {', '.join(TRACKERS)}, got {tracker!r}")
+    tracker_cls = tracker_class(tracker)
     name = name or clip_name(clip)
     if model and explicit is not None:
         from trackcli.dynamics.model import load_model, settings_with_model
@@ -529,16 +541,11 @@ def track_clip(
         at_template = tracker == "kalman" or settings.condensation.init == "template"
         setup = tracking_setup(model, template, settings, video, starts_at_template=at_template)
         space, dynamics, X0 = setup.space, setup.dynamics, setup.X0
-        if tracker == "kalman":
-            def make(frames: Iterable[Any]) -> Iterator[Any]:
-                return tracking.track_kalman(frames, space, dynamics, settings.measurement, settings.kalman, X0=X0,
-                                             observation=settings.condensation)
-        else:
-            rng = np.random.default_rng(settings.seed)
+        rng = np.random.default_rng(settings.seed)
+        the_tracker = tracker_cls(space, dynamics, settings, rng, X0=X0)
 
-            def make(frames: Iterable[Any]) -> Iterator[Any]:
-                return tracking.track_condensation(frames, space, dynamics, settings.measurement,
-                                                   settings.condensation, rng, X0=X0)
+        def make(frames: Iterable[Any]) -> Iterator[Any]:
+            return run_tracker(the_tracker, frames)
         smoother: Any = None
         if smooth:
             from trackcli.trackers.smoothing import KalmanTrackSmoother, ParticleSmoother
@@ -552,6 +559,7 @@ def track_clip(
         bar_ctx = progress(f"{name} ({tracker})", len(video)) if progress else contextlib.nullcontext(_NullBar())
         with bar_ctx as bar:
             summary = run_clip(video, make, space, tracker=tracker, csv_path=csv_path,
+                               extra_columns=the_tracker.extra_columns,
                                rrd_path=rrd_path if write_rrd else None,
                                params=params, jpeg_quality=settings.output.jpeg_quality,
                                progress=bar.update, recording_id=f"{name}-{tracker}-seed{settings.seed}",

@@ -30,7 +30,9 @@ from trackcli.dynamics.model import Model
 from trackcli.run.clips import RunSummary, run_clip
 from trackcli.shapes.shape_space import ShapeSpace
 from trackcli.shapes.template import Template
-from trackcli.trackers.tracking import build_space, handset_dynamics, track_kalman
+from trackcli.shapes.outline import build_space
+from trackcli.dynamics.handset import handset_dynamics
+from trackcli.trackers.kalman_tracker import track_kalman
 from trackcli.io.tracks import read_track
 
 log = logging.getLogger(__name__)

@@ -1,11 +1,37 @@
 """Trackers: filter steps, and the trackers built on them.
 
 - :mod:`.kalman` — the Kalman filter for AR(2) dynamics: predict and assimilate
-  (AC Fig 10.3), steady states, validation gates.
+  (AC Fig 10.3, :func:`.kalman.predict`, :func:`.kalman.assimilate`), steady states,
+  validation gates.
 - :mod:`.condensation` — CONDENSATION's sample sets: select, predict, weight (AC Fig 12.6),
   resampling schemes, initial sets.
-- :mod:`.tracking` — the frame loops of the Kalman contour tracker and of CONDENSATION,
-  each a generator of per-frame results.
+- :mod:`.base` — the tracker interface (:class:`.base.Tracker`: one frame in, one
+  :class:`.base.FrameResult` out) and the one frame loop, :func:`.base.run_tracker`.
+- :mod:`.kalman_tracker` — the Kalman contour tracker (AC ch. 10) on that interface.
+- :mod:`.condensation_tracker` — CONDENSATION over curve shape (AC ch. 12) on that interface:
+  initial sets, jumps in the motion prior, re-acquisition after loss.
 - :mod:`.smoothing` — Rauch–Tung–Striebel smoothing of a Kalman track and
   forward-filtering backward-smoothing of a particle track.
 """
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: the trackers by name (``trackcli track --tracker NAME``): ``module:class`` of a
+#: :class:`trackcli.trackers.base.Tracker`, imported when first used
+TRACKERS: dict[str, str] = {
+    "condensation": "trackcli.trackers.condensation_tracker:CondensationTracker",
+    "kalman": "trackcli.trackers.kalman_tracker:KalmanTracker",
+}
+
+
+def tracker_class(name: str) -> Any:
+    """The :class:`~trackcli.trackers.base.Tracker` subclass called ``name``."""
+    from trackcli.errors import ConfigError
+
+    if name not in TRACKERS:
+        raise ConfigError(f"tracker: expected one of {', '.join(TRACKERS)}, got {name!r}")
+    module, _, cls = TRACKERS[name].partition(":")
+    return getattr(importlib.import_module(module), cls)

@@ -267,7 +267,7 @@ def smooth_filtered(dynamics: Any, filtered: Smoothed) -> Smoothed:
 # ---------------------------------------------------------------------------------------------
 # Smoothing a track as it is made: consumers of the trackers' per-frame results
 #
-# ``trackcli track --smooth`` feeds every :class:`trackcli.trackers.tracking.FrameResult` to one of
+# ``trackcli track --smooth`` feeds every :class:`trackcli.trackers.base.FrameResult` to one of
 # these (``push``, which may hand back smoothed results that are final) and writes the smoothed
 # results, in frame order, as a second track; ``finish`` returns the rest at the end of the
 # clip (both smoothers here use the whole clip, so everything comes from ``finish``).  They read what the frame loops
@@ -276,7 +276,7 @@ def smooth_filtered(dynamics: Any, filtered: Smoothed) -> Smoothed:
 
 
 def _smoothed_result(result: Any, space: Any, X: np.ndarray, X_std: np.ndarray) -> Any:
-    from trackcli.trackers.tracking import contour_summary
+    from trackcli.shapes.outline import contour_summary
 
     contour, centroid, bbox = contour_summary(space, X)
     return dataclasses.replace(result, X=np.array(X, dtype=float), X_std=np.array(X_std, dtype=float),

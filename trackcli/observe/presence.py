@@ -1,0 +1,77 @@
+"""The discriminant observation model set up for one clip, and the confidence it gives.
+
+:class:`Presence` learns the appearance of :mod:`trackcli.observe.discriminant` from the
+template on the first frame; it scores hypothesised curves (CONDENSATION's default
+likelihood) and gives every tracker its per-frame confidence and ``lost`` verdict.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from trackcli.io.config import CondensationSettings, MeasurementSettings
+from trackcli.observe import discriminant as observe
+from trackcli.shapes.outline import contour_summary
+from trackcli.shapes.shape_space import ShapeSpace
+from trackcli.shapes.spline import CurveSampler
+
+
+@dataclass(frozen=True, eq=False)
+class Presence:
+    """The observation model of :mod:`trackcli.observe.discriminant`, set up for one clip.
+
+    Learned from the template on the first frame; gives the discriminant log-likelihood of
+    hypothesised curves (CONDENSATION's default) and, for both trackers, the per-frame
+    confidence and ``lost`` verdict.
+    """
+
+    app: observe.Appearance
+    h: float
+    sigma: float
+    threshold: float
+    miss: float
+    colour_weight: float
+    centre: float
+    reference: float = math.nan
+
+    @classmethod
+    def learn(cls, image: np.ndarray, fimg: np.ndarray, space: ShapeSpace, sampler: CurveSampler, X0: np.ndarray,
+              measurement: MeasurementSettings, settings: CondensationSettings) -> Presence:
+        pts, nrm = space.points_normals(X0, sampler)
+        poly, _, _ = contour_summary(space, X0)
+        app = observe.learn_appearance(image, fimg, pts, nrm, poly, h=settings.search, sigma=settings.sigma,
+                                       threshold=measurement.threshold)
+        judge = cls(app, settings.search, settings.sigma, measurement.threshold, settings.miss_probability,
+                    settings.colour_weight, measurement.presence_centre)
+        ev = judge.evidence(image, fimg, space.origin + X0[:2])
+        reference, _, _ = observe.presence(app, ev, pts, nrm, h=judge.h, sigma=judge.sigma, threshold=judge.threshold,
+                                           miss=judge.miss, colour_weight=judge.colour_weight)
+        return dataclasses.replace(judge, reference=reference)
+
+    def evidence(self, image: np.ndarray, fimg: np.ndarray, centre: np.ndarray) -> observe.FrameEvidence:
+        return observe.evidence(self.app, image, fimg, centre, self.threshold)
+
+    def score(self, ev: observe.FrameEvidence, pts: np.ndarray, nrm: np.ndarray) -> np.ndarray:
+        return observe.score(self.app, ev, pts, nrm, h=self.h, sigma=self.sigma, threshold=self.threshold,
+                             miss=self.miss, colour_weight=self.colour_weight)
+
+    def confidence(self, ev: observe.FrameEvidence, pts: np.ndarray, nrm: np.ndarray, spread: float,
+                   posterior_score: float | None = None) -> tuple[float, float, float]:
+        """``(confidence, log D, log-likelihood)`` of one curve, ``spread`` its positional spread in
+        object sizes; the log-likelihood is :meth:`score` of the curve.
+
+        ``posterior_score``, when given, is the presence score the sample set puts on the
+        object (its weighted mean score per normal); the larger of it and the curve's own
+        score is judged, so that a mean curve a few pixels off a well-supported posterior, or
+        between the modes of one, is not called lost when the samples are on the object.
+        """
+        s, e, _ = observe.presence(self.app, ev, pts, nrm, h=self.h, sigma=self.sigma, threshold=self.threshold,
+                                   miss=self.miss, colour_weight=self.colour_weight)
+        total = s * pts.shape[0]
+        if posterior_score is not None and math.isfinite(posterior_score):
+            s = max(s, posterior_score)
+        return observe.confidence(s, spread, reference=self.reference, centre=self.centre), e * pts.shape[0], total

@@ -1,0 +1,156 @@
+"""The tracker interface and the one frame loop that drives every tracker.
+
+A tracker is built from a shape-space, dynamics, the settings and a random generator, and
+starts from the template's shape ``X0`` on the first frame.  It turns one frame
+(:class:`FrameData`: the image and its feature image) into one :class:`FrameResult`:
+the estimate, its uncertainty, the confidence and ``lost`` verdict, diagnostics, and what
+the recording shows.  :func:`run_tracker` is the loop: decode → feature image → step.
+Everything that happens to the results — CSV rows, the recording, the run summary, the
+shapes that learning needs — consumes the iterator it returns
+(:func:`trackcli.run.clips.run_clip`, :mod:`trackcli.run.train`); nothing of it is inside
+a tracker.
+
+A new tracker subclasses :class:`Tracker`, implements :meth:`Tracker.step`, and is listed
+by name in :data:`trackcli.trackers.TRACKERS`.  Values it reports beyond the common fields
+go in :attr:`FrameResult.extra` under the names of :attr:`Tracker.extra_columns`; they
+become CSV columns and time series of the recording.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Iterable, Iterator
+
+import numpy as np
+
+from trackcli.io.config import MeasurementSettings, Settings
+from trackcli.observe import measure
+from trackcli.shapes.shape_space import ShapeSpace
+
+
+@dataclass(frozen=True, eq=False)
+class FrameResult:
+    """What a tracker estimated on one frame.
+
+    Attributes
+    ----------
+    index, time : int, float
+        Original frame index and time (s).
+    X : ndarray of shape (Nx,)
+        Estimated shape vector (Kalman: posterior mean; CONDENSATION: weighted mean).
+    X_std : ndarray of shape (Nx,)
+        Posterior standard deviation of each component.
+    contour : ndarray of shape (P, 2)
+        Dense polygon of the estimated curve, image ``(x, y)``.
+    centroid : ndarray of shape (2,)
+        Area centroid of the estimated curve.
+    bbox : tuple of float
+        ``(x, y, w, h)`` tight box of the contour.
+    n_found : int
+        Normals on which a feature was found (Kalman; for CONDENSATION, on the mean curve).
+    n_normals : int
+        ``M``.
+    gate_rms : float
+        RMS search half-width along the normals, px.
+    ess : float
+        Effective sample size (CONDENSATION; NaN for Kalman).
+    loglik : float
+        Log-likelihood of the estimated curve under the tracker's observation model (NaN
+        for Kalman).
+    lost : bool
+        Tracker's own verdict that it has no lock: ``confidence`` below
+        ``measurement.lost_below``.
+    confidence : float
+        Confidence in [0, 1] that the estimate is on the object
+        (:class:`trackcli.observe.presence.Presence`).
+    log_d : float
+        Log of the contour discriminant ``D`` of the estimated curve (``> 0``: more
+        object-like than clutter; :mod:`trackcli.observe.discriminant`).
+    extra : dict of str to float
+        Tracker-specific values, keyed by the names of its ``extra_columns``.
+    display : dict
+        Extra arrays for recordings and offline consumers (measurement points, gate ends,
+        features, particles, histogram, filtered state).
+    """
+
+    index: int
+    time: float
+    X: np.ndarray
+    X_std: np.ndarray
+    contour: np.ndarray
+    centroid: np.ndarray
+    bbox: tuple[float, float, float, float]
+    n_found: int
+    n_normals: int
+    gate_rms: float
+    ess: float = math.nan
+    loglik: float = math.nan
+    lost: bool = False
+    confidence: float = math.nan
+    log_d: float = math.nan
+    extra: dict[str, float] = field(default_factory=dict)
+    display: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, eq=False)
+class FrameData:
+    """One decoded frame as a tracker sees it: the BGR ``image`` and its feature image."""
+
+    index: int
+    time: float
+    image: np.ndarray
+    features: np.ndarray
+
+
+def feature_image(image: np.ndarray, m: MeasurementSettings) -> np.ndarray:
+    """The feature image of a frame under the measurement settings (:func:`measure.feature_image`)."""
+    return measure.feature_image(image, channel=m.channel, sigma=m.smoothing, edge_sigma=m.edge_sigma)
+
+
+class Tracker(ABC):
+    """A tracker: ``step`` turns one frame into one result; the first call is the first frame.
+
+    Parameters
+    ----------
+    space : ShapeSpace
+        The template's shape-space ``Q = W X + Q0``.
+    dynamics : AR2
+        Its ``tau`` should equal the clip's frame interval.
+    settings : Settings
+        The effective settings; a tracker reads its own sections.
+    rng : numpy.random.Generator
+        The only source of randomness (same seed, same numbers).
+    X0 : ndarray of shape (Nx,), optional
+        Shape on the first frame (default 0: the template where it was drawn).
+    """
+
+    name: ClassVar[str] = ""
+    #: names of the values of :attr:`FrameResult.extra`, in CSV column order
+    extra_columns: list[str] = []
+
+    def __init__(self, space: ShapeSpace, dynamics: Any, settings: Settings, rng: np.random.Generator | None = None,
+                 *, X0: np.ndarray | None = None):
+        self.space = space
+        self.dynamics = dynamics
+        self.settings = settings
+        self.rng = rng if rng is not None else np.random.default_rng(settings.seed)
+        self.X0 = np.zeros(space.Nx) if X0 is None else np.asarray(X0, dtype=float)
+
+    @abstractmethod
+    def step(self, frame: FrameData) -> FrameResult:
+        """Assimilate one frame and return the estimate (the first call starts on the template)."""
+
+
+def run_tracker(tracker: Tracker, frames: Iterable[Any], measurement: MeasurementSettings | None = None
+                ) -> Iterator[FrameResult]:
+    """The frame loop: for each decoded frame, the feature image, then one tracker step.
+
+    ``frames`` yields objects with ``index``, ``time`` and ``image`` (BGR), e.g. a
+    :class:`trackcli.io.video.Video`; ``measurement`` defaults to the tracker's settings.
+    """
+    m = measurement if measurement is not None else tracker.settings.measurement
+    for frame in frames:
+        data = FrameData(int(frame.index), float(frame.time), frame.image, feature_image(frame.image, m))
+        yield tracker.step(data)

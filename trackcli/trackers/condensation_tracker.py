@@ -1,0 +1,231 @@
+"""CONDENSATION over curve shape (AC ch. 12, Fig 12.6): select, predict, weight.
+
+The filter step itself is :func:`trackcli.trackers.condensation.step`; this module sets it
+up for a clip: the initial sample set, the observation model
+(:mod:`trackcli.observe.models`), the motion prior's jumps (:func:`translation_jumps`),
+re-acquisition by importance sampling after loss
+(:func:`trackcli.observe.discriminant.reacquisition_proposal`), and the per-frame summary.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Iterable, Iterator
+
+import numpy as np
+
+from trackcli.errors import ConfigError
+from trackcli.io.config import CondensationSettings, MeasurementSettings, Settings
+from trackcli.observe import discriminant as observe
+from trackcli.observe import measure
+from trackcli.observe.models import observation_model
+from trackcli.observe.presence import Presence
+from trackcli.shapes.outline import contour_summary, measurement_sampler
+from trackcli.shapes.shape_space import ShapeSpace
+from trackcli.trackers import condensation as cond
+from trackcli.trackers.base import FrameData, FrameResult, Tracker, run_tracker
+
+
+def initial_covariance(space: ShapeSpace, settings: CondensationSettings) -> np.ndarray:
+    """Diagonal covariance of the hand-placed initial sample set (``init: template``).
+
+    ``init_translation`` (px) on the two translation components, ``init_deformation`` on
+    every other component (in the units of ``X``: for similarity and affine spaces, a
+    fraction of the template's size).
+    """
+    var = np.full(space.Nx, settings.init_deformation**2)
+    var[:2] = settings.init_translation**2
+    return np.diag(var)
+
+
+def translation_jumps(fraction: float, rms: float):
+    """The jump part of CONDENSATION's motion prior, as a ``propose`` hook of :func:`cond.step`.
+
+    The prediction of the AR(2) model is smooth; objects in real footage also move
+    abruptly (a kick, a turn of the head, a jolt of the camera).  The motion prior is taken
+    as a mixture: with probability ``1 - fraction`` the AR(2) prediction, with probability
+    ``fraction`` the same plus an isotropic Gaussian jump of RMS ``rms`` px per axis in
+    translation (a displacement: the previous shape moves with it, so the velocity is the
+    AR(2) model's).  Drawing from this prior needs no importance correction (zero log-weights).
+    Returns None when there are no jumps.
+    """
+    if fraction <= 0 or rms <= 0:
+        return None
+
+    def propose(prev: np.ndarray, new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        hit = rng.random(new.shape[0]) < fraction
+        jump = rms * rng.standard_normal((int(hit.sum()), 2))
+        out, out_prev = new.copy(), prev.copy()
+        out[hit, :2] += jump
+        out_prev[hit, :2] += jump  # a displacement: the velocity is the AR(2) model's
+        return out_prev, out, np.zeros(new.shape[0])
+
+    return propose
+
+
+def _chain(first, second):
+    """Two ``propose`` hooks applied in turn (either may be None); corrections add up."""
+    if first is None:
+        return second
+
+    def propose(prev: np.ndarray, new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        p1, a, ca = first(prev, new, rng)
+        p2, b, cb = second(p1, a, rng)
+        return p2, b, ca + cb
+
+    return propose
+
+
+class CondensationTracker(Tracker):
+    """CONDENSATION over ``frames`` (AC Fig 12.6).
+
+    The observation model is ``condensation.likelihood`` (:mod:`trackcli.observe.models`):
+    ``"discriminant"`` (the default), ``"clutter"`` (AC eq 12.2) or ``"truncated"``
+    (Isard & Blake 1996 eqs 10–11).
+
+    Every frame's confidence and ``lost`` verdict come from
+    :class:`~trackcli.observe.presence.Presence`.  The motion prior is a mixture of the AR(2)
+    prediction and jumps (:func:`translation_jumps`); once the tracker has been lost for
+    ``reacquire_after`` frames in a row, a share of the samples is drawn from the colour
+    proposal of :func:`trackcli.observe.discriminant.reacquisition_proposal` with its
+    importance weights.
+
+    The sample set starts either as a Gaussian about ``X0`` (``init = "template"``, AC §12.4,
+    "positioned by hand") or from the steady state of the motion model (``"steady_state"``,
+    000 §5.1), with ``initial_particles`` samples falling to ``particles`` over
+    ``schedule_frames`` frames.  A hand-placed set starts at rest unless ``init_speed`` > 0:
+    then each sample's previous shape is its current one less a velocity drawn from
+    ``N(0, init_speed² I)`` (px/frame) in translation, for an object that may already be
+    moving when the template is drawn (the second-order state carries velocity, AC eq 9.16).
+    On the first frame the initial samples are weighted without prediction; afterwards every
+    frame is select → predict → weight.
+
+    ``hist_range`` is the range of horizontal translation ``tx`` covered by the histogram
+    (default: the frame width around the template).
+    """
+
+    name = "condensation"
+
+    def __init__(self, space: ShapeSpace, dynamics: Any, settings: Settings, rng: np.random.Generator | None = None,
+                 *, X0: np.ndarray | None = None, hist_range: tuple[float, float] | None = None):
+        super().__init__(space, dynamics, settings, rng, X0=X0)
+        c = settings.condensation
+        self.sampler = measurement_sampler(space, settings.measurement.n_normals)
+        self.schedule = cond.sample_size_schedule(c.initial_particles, c.particles, c.schedule_frames)
+        n0 = self.schedule(0)
+        if c.init == "template":
+            particles = cond.init_gaussian(self.X0, initial_covariance(space, c), n0, self.rng)
+            if c.init_speed > 0:
+                v = np.zeros_like(particles.cur)
+                v[:, :2] = c.init_speed * self.rng.standard_normal((particles.n, 2))
+                particles = cond.ParticleSet(particles.cur - v, particles.cur, particles.log_w)
+        else:
+            if not dynamics.is_stable():
+                raise ConfigError("condensation.init: steady_state needs dynamics with a steady state, and these have "
+                                  f"none (spectral radius {dynamics.spectral_radius():.4g}; the default translation is "
+                                  "a damped velocity with a free position): use init: template, or give "
+                                  "dynamics.translation a rho")
+            particles = cond.init_steady_state(dynamics, n0, self.rng)
+        self.particles = particles
+        self.observation = observation_model(c.likelihood, settings.measurement, c)
+        self.hist_range = hist_range
+        self.edges: np.ndarray | None = None
+        self.judge: Presence | None = None
+        self.jumps = None
+        self.centre = space.origin + self.X0[:2]
+        self.lost_run = 0  # frames lost in a row
+        self.k = 0
+
+    def _start(self, frame: FrameData) -> None:
+        c, space = self.settings.condensation, self.space
+        if self.hist_range is None:
+            ox = float(space.origin[0])
+            self.hist_range = (-ox, frame.image.shape[1] - ox)
+        self.edges = np.linspace(self.hist_range[0], self.hist_range[1], c.histogram_bins + 1)
+        self.judge = Presence.learn(frame.image, frame.features, space, self.sampler, self.X0,
+                                    self.settings.measurement, c)
+        self.observation.start(frame.image, frame.features, space, self.sampler, self.X0, presence=self.judge)
+        self.jumps = translation_jumps(c.jump_fraction, c.jump_size * self.judge.app.size)
+
+    def _proposal(self, ev: Any, frame: FrameData):
+        """The motion prior's jumps, and after ``reacquire_after`` lost frames the colour proposal."""
+        c = self.settings.condensation
+        if not (self.lost_run >= c.reacquire_after and c.reacquire):
+            return self.jumps
+        peaks, strengths = observe.colour_peaks(ev.cmap, self.judge.app.size)
+        reacquire = observe.reacquisition_proposal(
+            peaks, strengths, self.space.origin, self.judge.app.size, (frame.image.shape[1], frame.image.shape[0]),
+            fraction=c.reacquire_fraction)
+        return self.jumps if reacquire is None else _chain(self.jumps, reacquire)
+
+    def step(self, frame: FrameData) -> FrameResult:
+        c, m, space = self.settings.condensation, self.settings.measurement, self.space
+        if self.judge is None:
+            self._start(frame)
+        judge = self.judge
+        ev = judge.evidence(frame.image, frame.features, self.centre)
+        self.observation.prepare(frame.image, frame.features, ev)
+
+        def loglik(X: np.ndarray) -> np.ndarray:
+            pts, nrm = space.points_normals(X, self.sampler)
+            return self.observation.log_likelihood(pts, nrm)
+
+        if self.k == 0:
+            ll = loglik(self.particles.cur)
+            particles = cond.ParticleSet(self.particles.prev, self.particles.cur, ll)
+            ess = particles.ess
+            ancestry = particles
+        else:
+            particles, info = cond.step(self.particles, self.dynamics, loglik, self.rng, n_out=self.schedule(self.k),
+                                        scheme=c.resampling, ess_threshold=c.ess_threshold,
+                                        propose=self._proposal(ev, frame))
+            ess = info.ess
+            ll = info.loglik
+            ancestry = cond.ParticleSet(info.parent_shapes, particles.cur, particles.log_w)
+        self.particles = particles
+        self.k += 1
+        w = particles.weights
+        X = cond.weighted_mean(particles)
+        best = cond.best_sample(particles)
+        dev = particles.cur - X
+        X_std = np.sqrt(np.maximum(w @ (dev * dev), 0.0))
+        contour, centroid, bbox = contour_summary(space, X)
+        pts, nrm = space.points_normals(X, self.sampler)
+        spread = float(np.sqrt(X_std[0] ** 2 + X_std[1] ** 2)) / judge.app.size
+        # the evidence the posterior puts on the object: the weighted mean of the samples'
+        # scores per normal (the discriminant only; the others are not in its units)
+        held = w > 0
+        discriminant = c.likelihood == "discriminant"
+        post = float(w[held] @ ll[held]) / m.n_normals if discriminant else None
+        conf, log_d, score_mean = judge.confidence(ev, pts, nrm, spread, posterior_score=post)
+        loglik_mean = score_mean if discriminant else float(loglik(X[None])[0])
+        lost = conf < m.lost_below
+        self.lost_run = self.lost_run + 1 if lost else 0
+        if np.isfinite(centroid).all():
+            self.centre = centroid
+        feats = measure.kalman_features(frame.features, pts, nrm, c.search, threshold=m.threshold,
+                                        polarity=m.polarity, max_half_width=max(c.search, 1.0))
+        hist = cond.weighted_histogram(particles, self.edges, component=0)
+        display: dict[str, Any] = {"points": pts, "histogram": hist, "hist_edges": self.edges, "best": best}
+        if c.display_particles:
+            top = np.argsort(w)[::-1][: c.display_particles]
+            display["particle_contours"] = space.points(particles.cur[top], self.sampler)
+            display["particle_weights"] = w[top] / max(float(w.max()), 1e-300)
+        display["particle_centroids"] = particles.cur[:, :2] + space.origin
+        display["weights"] = w
+        # for offline consumers (trackcli.trackers.smoothing): each sample's X_{k-1} as its
+        # parent had it, before a jump or a re-acquisition moved it
+        display["particles"] = ancestry
+        return FrameResult(
+            index=frame.index, time=frame.time, X=X, X_std=X_std, contour=contour,
+            centroid=centroid, bbox=bbox, n_found=int(feats.found.sum()), n_normals=m.n_normals,
+            gate_rms=float(c.search), ess=float(ess), loglik=loglik_mean, lost=bool(lost), confidence=conf,
+            log_d=log_d, display=display,
+        )
+
+
+def track_condensation(frames: Iterable[Any], space: ShapeSpace, dynamics: Any, measurement: MeasurementSettings,
+                       settings: CondensationSettings, rng: np.random.Generator, *, X0: np.ndarray | None = None,
+                       hist_range: tuple[float, float] | None = None) -> Iterator[FrameResult]:
+    """:class:`CondensationTracker` over ``frames`` with these sections of the settings (the rest default)."""
+    full = Settings(measurement=measurement, condensation=settings)
+    return run_tracker(CondensationTracker(space, dynamics, full, rng, X0=X0, hist_range=hist_range), frames)
