@@ -282,6 +282,15 @@ def _record_frame(rec: Any, log_frame: Any, frame: Any, r: Any) -> None:
     rec.log_points("video/centroid", r.centroid[None], colors=ESTIMATE_RGB, radii=3.0)
     if "histogram" in d:
         rec.log_histogram("histogram/tx", d["histogram"], d["hist_edges"])
+    for path, kind, data, color in d.get("overlays", ()):
+        if kind == "points":
+            rec.log_points(path, data, colors=color, radii=3.0)
+        elif kind == "segments":
+            rec.log_segments(path, data[0], data[1], color=color)
+        elif kind == "contour":
+            rec.log_contour(path, data, color=color, width=2.0)
+        else:
+            raise DataError(f"display overlay {path}: unknown kind {kind!r} (points, segments or contour)")
 
 
 def _record_series(rec: Any, s: dict[str, list], hist_rows: list, hist_edges: Any) -> None:

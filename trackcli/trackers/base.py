@@ -72,7 +72,10 @@ class FrameResult:
         Tracker-specific values, keyed by the names of its ``extra_columns``.
     display : dict
         Extra arrays for recordings and offline consumers (measurement points, gate ends,
-        features, particles, histogram, filtered state).
+        features, particles, histogram, filtered state).  A tracker's own drawings go in
+        ``display["overlays"]``: a list of ``(entity path, kind, data, rgb)`` with kind
+        ``"points"`` (data ``(K, 2)``), ``"segments"`` (data ``(starts (K, 2), ends (K, 2))``)
+        or ``"contour"`` (data ``(P, 2)``), e.g. ``("video/parts", "points", xy, (255, 0, 0))``.
     """
 
     index: int
