@@ -236,7 +236,7 @@ def test_predict_matches_the_ar2_equation():
     for i in range(5):
         ref = dyn.mean + dyn.A2 @ (prev[i] - dyn.mean) + dyn.A1 @ (cur[i] - dyn.mean) + dyn.B0 @ w[i]
         np.testing.assert_allclose(got[i], ref)
-    with pytest.raises(DataError, match="A1"):
+    with pytest.raises(ConfigError, match="A1"):
         cond.predict(prev, cur, SimpleNamespace(A1=np.eye(2), A2=np.eye(3), B0=np.eye(3), mean=np.zeros(3)), rng)
 
 

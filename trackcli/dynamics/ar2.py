@@ -264,14 +264,7 @@ class AR2:
         B : ndarray of shape (2 Nx, Nx)
             ``[[0], [B0]]``.
         """
-        n = self.nx
-        A = np.zeros((2 * n, 2 * n))
-        A[:n, n:] = np.eye(n)
-        A[n:, :n] = self.A2
-        A[n:, n:] = self.A1
-        B = np.zeros((2 * n, n))
-        B[n:] = self.B0
-        return A, B
+        return state_matrices(self.A2, self.A1, self.B0)
 
     def state_mean(self) -> np.ndarray:
         """Mean state ``(X̄; X̄)``, shape ``(2 Nx,)``."""
@@ -311,9 +304,7 @@ class AR2:
         if radius >= 1.0:
             raise DataError(f"the model has no steady state: its spectral radius is {radius:.6g} (must be < 1); "
                             "constant-velocity and other undamped motion grows without bound")
-        A, B = self.state_matrices()
-        P = scipy.linalg.solve_discrete_lyapunov(A, B @ B.T)
-        return 0.5 * (P + P.T)
+        return stationary_covariance(*self.state_matrices())
 
     def rms_displacement(self, H: np.ndarray, projector: np.ndarray | None = None) -> float:
         """Steady-state RMS curve displacement from the mean, ``sqrt(trace(H P_XX))``.
@@ -345,30 +336,13 @@ class AR2:
     # -- sampling -----------------------------------------------------------------------------
 
     def predict(self, prev: np.ndarray, cur: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Sample the next shape for each of many states at once.
-
-        Parameters
-        ----------
-        prev : ndarray of shape (N, Nx) or (Nx,)
-            ``X_{k-2}`` of each state.
-        cur : ndarray of shape (N, Nx) or (Nx,)
-            ``X_{k-1}`` of each state.
-        rng : numpy.random.Generator
-            Source of the driving noise (``N * Nx`` standard normals are drawn).
-
-        Returns
-        -------
-        ndarray of the shape of ``cur``
-            ``X_k`` sampled from AC eq 9.15.
-        """
-        prev = np.asarray(prev, dtype=float)
-        cur = np.asarray(cur, dtype=float)
+        """Sample ``X_k`` from ``X_{k-2}, X_{k-1}`` (shape ``(N, Nx)`` or ``(Nx,)``): :func:`predict_samples`."""
+        prev, cur = np.asarray(prev, dtype=float), np.asarray(cur, dtype=float)
         if cur.shape != prev.shape or cur.ndim not in (1, 2) or cur.shape[-1] != self.nx:
             raise DataError(f"prev and cur must both have shape (N, {self.nx}) or ({self.nx},), "
                             f"got {prev.shape} and {cur.shape}")
-        noise = rng.standard_normal(cur.shape)
-        return (self.mean + (prev - self.mean) @ self.A2.T + (cur - self.mean) @ self.A1.T
-                + noise @ self.B0.T)
+        out = predict_samples(np.atleast_2d(prev), np.atleast_2d(cur), self, rng)
+        return out[0] if cur.ndim == 1 else out
 
     def simulate(self, n_frames: int, rng: np.random.Generator, *, x0: np.ndarray | None = None,
                  x1: np.ndarray | None = None, burn_in: int = 0) -> np.ndarray:
@@ -510,6 +484,92 @@ class AR2:
 
 # ---------------------------------------------------------------------------------------------
 # Hand-set defaults (AC §9.6)
+
+
+def state_matrices(A2: np.ndarray, A1: np.ndarray, B0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """First-order form of AR(2) dynamics on ``𝒳_k = (X_{k-1}; X_k)`` (AC eq 9.18).
+
+    Returns ``A = [[0, I], [A2, A1]]`` (the block-companion matrix, shape ``(2 Nx, 2 Nx)``)
+    and ``B = [[0], [B0]]`` (shape ``(2 Nx, Nw)``).
+    """
+    A2, A1, B0 = (np.asarray(m, dtype=float) for m in (A2, A1, B0))
+    n = A1.shape[0]
+    A = np.zeros((2 * n, 2 * n))
+    A[:n, n:] = np.eye(n)
+    A[n:, :n] = A2
+    A[n:, n:] = A1
+    B = np.zeros((2 * n, B0.shape[1]))
+    B[n:] = B0
+    return A, B
+
+
+def spectral_radius(A2: np.ndarray, A1: np.ndarray) -> float:
+    """Largest eigenvalue modulus of the state matrix ``[[0, I], [A2, A1]]`` (AC eq 9.17)."""
+    A, _ = state_matrices(A2, A1, np.zeros((np.shape(A1)[0], 1)))
+    return float(np.abs(np.linalg.eigvals(A)).max())
+
+
+def stationary_covariance(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """The fixed point of ``P = A P Aᵀ + B Bᵀ`` (AC eq 9.23), a discrete Lyapunov equation.
+
+    The caller checks that ``A`` is stable; the result is symmetrised.
+    """
+    P = scipy.linalg.solve_discrete_lyapunov(A, B @ B.T)
+    return 0.5 * (P + P.T)
+
+
+def dynamics_arrays(dynamics: Any, nx: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(A1, A2, B0, mean)`` of any object that has them (an :class:`AR2`, or a duck), checked.
+
+    Shapes ``A1, A2: (Nx, Nx)``, ``B0: (Nx, Nw)``, ``mean: (Nx,)``, all finite; with ``nx``,
+    ``Nx`` must equal it.  Raises :class:`~trackcli.errors.ConfigError` naming what is wrong (the same for every
+    filter that takes dynamics).
+    """
+    try:
+        a1, a2, b0, mean = (np.asarray(getattr(dynamics, k), dtype=np.float64) for k in ("A1", "A2", "B0", "mean"))
+    except AttributeError as exc:
+        raise ConfigError(f"dynamics: expected attributes A1, A2, B0 and mean ({exc})") from None
+    size = mean.shape[0] if mean.ndim == 1 else -1
+    if nx is not None and size != nx:
+        raise ConfigError(f"dynamics: mean has shape {mean.shape}, expected ({nx},) to match the state")
+    if size < 1 or a1.shape != (size, size) or a2.shape != (size, size) or b0.ndim != 2 or b0.shape[0] != size:
+        raise ConfigError(
+            f"dynamics: expected A1, A2 of shape (Nx, Nx), B0 of shape (Nx, Nw) and mean of shape (Nx,); "
+            f"got {a1.shape}, {a2.shape}, {b0.shape}, {mean.shape}"
+        )
+    for name, value in (("A1", a1), ("A2", a2), ("B0", b0), ("mean", mean)):
+        if not np.all(np.isfinite(value)):
+            raise ConfigError(f"dynamics.{name} contains NaN or inf")
+    return a1, a2, b0, mean
+
+
+def predict_samples(prev: np.ndarray, cur: np.ndarray, dynamics: Any, rng: np.random.Generator) -> np.ndarray:
+    """Draw ``X_{k+1}`` for every sample from the AR(2) model (AC eq 9.15; the predict step of AC Fig 12.6).
+
+    Parameters
+    ----------
+    prev, cur : ndarray of shape (N, Nx)
+        ``X_{k-1}`` and ``X_k``.
+    dynamics
+        Object with ``A1``, ``A2`` (Nx, Nx), ``B0`` (Nx, Nw), ``mean`` (Nx,).
+    rng : numpy.random.Generator
+        Source of the fresh noise ``w ~ N(0, I_Nw)``.
+
+    Returns
+    -------
+    ndarray of shape (N, Nx)
+        ``X̄ + A2 (X_{k-1} - X̄) + A1 (X_k - X̄) + B0 w``.
+    """
+    prev = np.asarray(prev, dtype=np.float64)
+    cur = np.asarray(cur, dtype=np.float64)
+    a1, a2, b0, mean = dynamics_arrays(dynamics, cur.shape[-1] if cur.ndim == 2 else None)
+    if cur.ndim != 2 or prev.shape != cur.shape:
+        raise DataError(f"prev and cur: expected equal shapes (N, Nx), got {prev.shape} and {cur.shape}")
+    out = rng.standard_normal((cur.shape[0], b0.shape[1])) @ b0.T
+    out += cur @ a1.T
+    out += prev @ a2.T
+    out += mean - (a1 + a2) @ mean  # few temporaries: this runs on every sample every frame
+    return out
 
 
 def _number(name: str, value: Any) -> float:

@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from trackcli.dynamics.ar2 import AR2, symmetric_sqrt
+from trackcli.dynamics.ar2 import AR2, state_matrices, symmetric_sqrt
 from trackcli.errors import DataError
 
 __all__ = ["AR2Statistics", "LearningReport", "fit_ar2", "stabilise"]
@@ -312,11 +312,6 @@ def _residual_scatter(S: list[list[np.ndarray]], coef: np.ndarray) -> np.ndarray
     return 0.5 * (Z + Z.T)
 
 
-def _companion(A2: np.ndarray, A1: np.ndarray) -> np.ndarray:
-    n = A1.shape[0]
-    return np.block([[np.zeros((n, n)), np.eye(n)], [A2, A1]])
-
-
 def stabilise(A2: np.ndarray, A1: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray, str]:
     """Pull every state-matrix eigenvalue with ``|λ| > limit`` in to ``|λ| = limit``.
 
@@ -329,7 +324,7 @@ def stabilise(A2: np.ndarray, A1: np.ndarray, limit: float) -> tuple[np.ndarray,
     ``A2 → s² A2``, which keeps every frequency and mode shape and adds
     ``-log(s)/τ`` to every damping rate.
     """
-    vals, vecs = np.linalg.eig(_companion(A2, A1))
+    vals, vecs = np.linalg.eig(state_matrices(A2, A1, np.eye(A1.shape[0]))[0])
     radius = float(np.abs(vals).max())
     if radius <= limit:
         return A2, A1, "no"
@@ -342,7 +337,7 @@ def stabilise(A2: np.ndarray, A1: np.ndarray, limit: float) -> tuple[np.ndarray,
         scale = max(1.0, float(np.abs(coef).max()))
         if np.abs(coef.imag).max() <= 1e-9 * scale:
             new2, new1 = coef.real[:, :n], coef.real[:, n:]
-            if float(np.abs(np.linalg.eigvals(_companion(new2, new1))).max()) <= limit * (1 + 1e-9):
+            if float(np.abs(np.linalg.eigvals(state_matrices(new2, new1, np.eye(new1.shape[0]))[0])).max()) <= limit * (1 + 1e-9):
                 return new2, new1, "modes"
     s = limit / radius
     return s * s * A2, s * A1, "scaled"
@@ -437,7 +432,7 @@ def fit_ar2(data: Any, tau: float, *, mean: Any = None, enforce_stability: bool 
     S = _centred_products(stats, known_mean)
     coef = _solve_normal_equations(S, stats)
     A2, A1 = coef[:, :nx], coef[:, nx:]
-    free_radius = float(np.abs(np.linalg.eigvals(_companion(A2, A1))).max())
+    free_radius = float(np.abs(np.linalg.eigvals(state_matrices(A2, A1, np.eye(A1.shape[0]))[0])).max())
     stabilised = "no"
     if enforce_stability:
         A2, A1, stabilised = stabilise(A2, A1, limit)

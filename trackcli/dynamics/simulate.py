@@ -2,8 +2,8 @@
 
 Simulating a model and looking at the result is the quickest check that it has learned
 the motion it was trained on: the paths should wander, oscillate and deform the way the
-training object did.  Paths start at rest at the model's template (``X = 0``) unless the
-model is stationary, in which case a burn-in draws the start from its steady state.
+training object did.  Every path starts at rest at the model's template (``X = 0``), so a
+stationary model is seen settling from the template into its steady state.
 """
 
 from __future__ import annotations

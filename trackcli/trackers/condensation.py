@@ -29,6 +29,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from trackcli.dynamics.ar2 import dynamics_arrays, spectral_radius
+from trackcli.dynamics.ar2 import predict_samples as predict  # the predict step of AC Fig 12.6
 from trackcli.errors import ConfigError, DataError
 
 __all__ = [
@@ -287,64 +289,6 @@ class StepInfo(NamedTuple):
 # Dynamics
 
 
-def _dynamics_arrays(dynamics: Any, nx: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    try:
-        a1 = np.asarray(dynamics.A1, dtype=np.float64)
-        a2 = np.asarray(dynamics.A2, dtype=np.float64)
-        b0 = np.asarray(dynamics.B0, dtype=np.float64)
-        mean = np.asarray(dynamics.mean, dtype=np.float64)
-    except AttributeError as exc:
-        raise DataError(f"dynamics: expected attributes A1, A2, B0 and mean ({exc})") from None
-    size = mean.shape[0] if mean.ndim == 1 else -1
-    if nx is not None and size != nx:
-        raise DataError(f"dynamics: mean has shape {mean.shape}, expected ({nx},) to match the samples")
-    if size < 1 or a1.shape != (size, size) or a2.shape != (size, size) or b0.ndim != 2 or b0.shape[0] != size:
-        raise DataError(
-            f"dynamics: expected A1, A2 of shape (Nx, Nx), B0 of shape (Nx, Nw) and mean of shape (Nx,); "
-            f"got {a1.shape}, {a2.shape}, {b0.shape}, {mean.shape}"
-        )
-    return a1, a2, b0, mean
-
-
-def predict(prev: np.ndarray, cur: np.ndarray, dynamics: Any, rng: np.random.Generator) -> np.ndarray:
-    """Draw ``X_{k+1}`` for every sample from the AR(2) model (AC eq 9.15).
-
-    Parameters
-    ----------
-    prev, cur : ndarray of shape (N, Nx)
-        ``X_{k-1}`` and ``X_k``.
-    dynamics
-        Object with ``A1``, ``A2`` (Nx, Nx), ``B0`` (Nx, Nw), ``mean`` (Nx,).
-    rng : numpy.random.Generator
-        Source of the fresh noise ``w ~ N(0, I_Nw)``.
-
-    Returns
-    -------
-    ndarray of shape (N, Nx)
-        ``X̄ + A2 (X_{k-1} - X̄) + A1 (X_k - X̄) + B0 w``.
-    """
-    prev = np.asarray(prev, dtype=np.float64)
-    cur = np.asarray(cur, dtype=np.float64)
-    a1, a2, b0, mean = _dynamics_arrays(dynamics, cur.shape[-1] if cur.ndim == 2 else None)
-    if cur.ndim != 2 or prev.shape != cur.shape:
-        raise DataError(f"prev and cur: expected equal shapes (N, Nx), got {prev.shape} and {cur.shape}")
-    out = rng.standard_normal((cur.shape[0], b0.shape[1])) @ b0.T
-    out += cur @ a1.T
-    out += prev @ a2.T
-    out += mean - (a1 + a2) @ mean  # few temporaries: this runs on every sample every frame
-    return out
-
-
-def _spectral_radius(a1: np.ndarray, a2: np.ndarray) -> float:
-    """Largest eigenvalue modulus of the state matrix ``[[0, I], [A2, A1]]`` (AC eq 9.17)."""
-    nx = a1.shape[0]
-    state = np.zeros((2 * nx, 2 * nx))
-    state[:nx, nx:] = np.eye(nx)
-    state[nx:, :nx] = a2
-    state[nx:, nx:] = a1
-    return float(np.abs(np.linalg.eigvals(state)).max())
-
-
 # ---------------------------------------------------------------------------------------------
 # One time-step
 
@@ -581,9 +525,9 @@ def init_steady_state(
     ParticleSet
         ``n`` equally weighted samples.
     """
-    a1, a2, _, mean = _dynamics_arrays(dynamics)
+    a1, a2, _, mean = dynamics_arrays(dynamics)
     n = _check_count(n, "n")
-    rho = _spectral_radius(a1, a2)
+    rho = spectral_radius(a2, a1)
     if rho >= 1.0:
         raise DataError(
             f"dynamics: no steady state, the model is not stable (spectral radius {rho:.6g} >= 1); "

@@ -59,6 +59,7 @@ from typing import Any, TypeAlias
 import numpy as np
 import scipy.linalg
 
+from trackcli.dynamics.ar2 import dynamics_arrays, state_matrices, stationary_covariance
 from trackcli.errors import ConfigError, DataError
 
 __all__ = [
@@ -170,26 +171,6 @@ Observation: TypeAlias = (
 """One frame's aggregated measurement, or a function measuring it from the prediction."""
 
 
-def _matrix(dynamics: Any, name: str, nx: int | None) -> np.ndarray:
-    if not hasattr(dynamics, name):
-        raise ConfigError(
-            f"dynamics object {type(dynamics).__name__} has no attribute {name!r}; "
-            "expected A1, A2, B0, mean and tau"
-        )
-    value = np.asarray(getattr(dynamics, name), dtype=float)
-    if value.ndim != 2 or value.shape[0] != value.shape[1] or value.shape[0] == 0:
-        raise ConfigError(
-            f"dynamics.{name} must be a square (Nx, Nx) matrix, got shape {value.shape}"
-        )
-    if nx is not None and value.shape[0] != nx:
-        raise ConfigError(
-            f"dynamics.{name} must have shape ({nx}, {nx}) like A1, got {value.shape}"
-        )
-    if not np.all(np.isfinite(value)):
-        raise ConfigError(f"dynamics.{name} contains NaN or inf")
-    return value
-
-
 def state_space(dynamics: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """First-order form of the AR(2) dynamics on the state ``(X_{k-1}; X_k)``.
 
@@ -207,26 +188,10 @@ def state_space(dynamics: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     offset : ndarray of shape (2 * Nx,)
         ``(0; (I - A2 - A1) X̄)``, so that ``𝒳_k = A 𝒳_{k-1} + offset + B w_k``.
     """
-    A1 = _matrix(dynamics, "A1", None)
-    nx = A1.shape[0]
-    A2 = _matrix(dynamics, "A2", nx)
-    B0 = _matrix(dynamics, "B0", nx)
-    if not hasattr(dynamics, "mean"):
-        raise ConfigError("dynamics object has no attribute 'mean' (the mean shape X̄)")
-    mean = np.asarray(dynamics.mean, dtype=float)
-    if mean.shape != (nx,) or not np.all(np.isfinite(mean)):
-        raise ConfigError(
-            f"dynamics.mean must be a finite vector of shape ({nx},), got {mean.shape}"
-        )
-    eye = np.eye(nx)
-    A = np.zeros((2 * nx, 2 * nx))
-    A[:nx, nx:] = eye
-    A[nx:, :nx] = A2
-    A[nx:, nx:] = A1
-    B = np.zeros((2 * nx, nx))
-    B[nx:] = B0
-    offset = np.zeros(2 * nx)
-    offset[nx:] = (eye - A2 - A1) @ mean
+    A1, A2, B0, mean = dynamics_arrays(dynamics)
+    A, B = state_matrices(A2, A1, B0)
+    offset = np.zeros(A.shape[0])
+    offset[A1.shape[0]:] = (np.eye(A1.shape[0]) - A2 - A1) @ mean
     return A, B, offset
 
 
@@ -559,9 +524,8 @@ def init_unknown(dynamics: Any) -> KalmanState:
             "e.g. a constant-velocity model), so an unknown initial position cannot be "
             "represented; start from a known position instead (init_known_static)"
         )
-    cov = scipy.linalg.solve_discrete_lyapunov(A, B @ B.T)
     mean = np.asarray(dynamics.mean, dtype=float)
-    return KalmanState(np.concatenate([mean, mean]), _symmetric(cov))
+    return KalmanState(np.concatenate([mean, mean]), stationary_covariance(A, B))
 
 
 def filter_sequence(
