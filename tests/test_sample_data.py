@@ -13,6 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from trackcli import sample_data as sd
+from trackcli.sample_data import scene
 from trackcli.errors import ConfigError, InputError
 
 COMMITTED = Path(__file__).resolve().parent.parent / "sample_data"
@@ -275,7 +276,7 @@ def test_renderer_coverage_has_the_outline_area_and_centroid():
     for _ in range(5):
         pose = (rng.uniform(150, 330), rng.uniform(120, 240), rng.uniform(-0.5, 0.5), rng.uniform(0.7, 1.3))
         canvas = np.full((360, 480, 3), 200.0, np.float32)
-        sd._composite(canvas, sd._Item(base, sd._flat_sprite((50, 50, 50)), pose))
+        scene._composite(canvas, scene._Item(base, scene._flat_sprite((50, 50, 50)), pose))
         alpha = (200.0 - canvas[..., 0]) / 150.0
         poly = sd.similarity(base, *pose)
         area = -sd.polygon_area(poly)

@@ -29,7 +29,7 @@ import numpy as np
 import yaml
 
 from trackcli.io.config import Settings, replace, settings_from_dict, to_dict
-from trackcli.dynamics.ar2 import AR2, symmetric_sqrt
+from trackcli.dynamics.ar2 import AR2
 from trackcli.errors import ConfigError, ModelError, TrackcliError
 from trackcli.io.outputs import read_yaml_file, write_text
 from trackcli.shapes.shape_space import ShapeSpace

@@ -28,8 +28,14 @@ MAX_YAML_NODES = 200_000
 MAX_YAML_DEPTH = 64
 
 
-def partial_name(path: Path) -> Path:
-    """The temporary name used while ``path`` is being written."""
+def partial_name(path: Path, *, keep_suffix: bool = False) -> Path:
+    """The temporary name used while ``path`` is being written.
+
+    With ``keep_suffix`` it ends like ``path`` (a video writer picks its container from the
+    extension).
+    """
+    if keep_suffix:
+        return path.with_name(f".{path.stem}.part{path.suffix}")
     return path.with_name(f".{path.name}.part")
 
 
@@ -59,7 +65,7 @@ def write_text(path: str | Path, text: str) -> Path:
     """Write ``text`` to ``path`` atomically (UTF-8)."""
     path = Path(path)
     with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
+        tmp.write_text(text, encoding="utf-8", newline="\n")
     return path
 
 

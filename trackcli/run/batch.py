@@ -91,7 +91,8 @@ from trackcli import __version__
 from trackcli.io.config import Settings, load_settings, settings_from_dict, to_dict
 from trackcli.errors import ConfigError, InputError, TrackcliError, short_repr
 from trackcli.io.outputs import ensure_dir, partial_name, write_text
-from trackcli.run.clips import TRACKERS, clip_name, output_base, track_clip
+from trackcli.run.clips import clip_name, output_base, track_clip
+from trackcli.trackers import TRACKERS
 
 log = logging.getLogger(__name__)
 

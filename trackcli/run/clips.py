@@ -30,7 +30,7 @@ from trackcli.errors import ConfigError, DataError, TemplateError
 from trackcli.io.outputs import output_dir, refuse_overwriting_inputs, write_text
 from trackcli.shapes.shape_space import ShapeSpace
 from trackcli.io.tracks import OutlineColumns, TrackWriter
-from trackcli.trackers import TRACKERS, tracker_class  # noqa: F401  (TRACKERS: the names a batch accepts)
+from trackcli.trackers import tracker_class
 
 log = logging.getLogger(__name__)
 
@@ -38,7 +38,6 @@ log = logging.getLogger(__name__)
 
 #: Colours (RGB) used in recordings.
 ESTIMATE_RGB = (255, 60, 40)
-BEST_RGB = (60, 255, 120)
 GATE_RGB = (255, 210, 0)
 FEATURE_RGB = (0, 200, 255)
 SMOOTHED_RGB = (255, 0, 255)

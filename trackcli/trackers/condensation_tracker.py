@@ -185,7 +185,6 @@ class CondensationTracker(Tracker):
         self.k += 1
         w = particles.weights
         X = cond.weighted_mean(particles)
-        best = cond.best_sample(particles)
         dev = particles.cur - X
         X_std = np.sqrt(np.maximum(w @ (dev * dev), 0.0))
         contour, centroid, bbox = contour_summary(space, X)
@@ -205,13 +204,11 @@ class CondensationTracker(Tracker):
         feats = measure.kalman_features(frame.features, pts, nrm, c.search, threshold=m.threshold,
                                         polarity=m.polarity, max_half_width=max(c.search, 1.0))
         hist = cond.weighted_histogram(particles, self.edges, component=0)
-        display: dict[str, Any] = {"points": pts, "histogram": hist, "hist_edges": self.edges, "best": best}
+        display: dict[str, Any] = {"histogram": hist, "hist_edges": self.edges}
         if c.display_particles:
             top = np.argsort(w)[::-1][: c.display_particles]
             display["particle_contours"] = space.points(particles.cur[top], self.sampler)
             display["particle_weights"] = w[top] / max(float(w.max()), 1e-300)
-        display["particle_centroids"] = particles.cur[:, :2] + space.origin
-        display["weights"] = w
         # for offline consumers (trackcli.trackers.smoothing): each sample's X_{k-1} as its
         # parent had it, before a jump or a re-acquisition moved it
         display["particles"] = ancestry

@@ -516,7 +516,6 @@ def init_unknown(dynamics: Any) -> KalmanState:
         constant-velocity model (``A2 = -I, A1 = 2I``) or an unstable learned model.
     """
     A, B, _ = state_space(dynamics)
-    nx = A.shape[0] // 2
     radius = float(np.max(np.abs(np.linalg.eigvals(A))))
     if radius >= _STABILITY_LIMIT:
         raise DataError(

@@ -81,7 +81,6 @@ class KalmanTracker(Tracker):
             gate_rms=float(np.sqrt(np.mean(gates**2))), lost=conf < m.lost_below,
             confidence=conf, log_d=log_d,
             display={
-                "points": pts,
                 "gate_inner": pts - gates[:, None] * nrm,
                 "gate_outer": pts + gates[:, None] * nrm,
                 "features": pts[feats.found] + feats.nu[feats.found, None] * nrm[feats.found],
