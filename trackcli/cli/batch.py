@@ -13,7 +13,10 @@ import math
 
 import click
 
-from trackcli.run import batch
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the batch machinery (numpy, OpenCV) loads when a batch runs, not for --help
+    from trackcli.run import batch
 
 
 def _quiet(ctx: click.Context, quiet: bool) -> bool:
@@ -63,13 +66,15 @@ def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet):
     quiet = _quiet(ctx, quiet)
     if quiet:
         logging.getLogger("trackcli").setLevel(logging.ERROR)
+    from trackcli.run import batch
+
     if scheduler:
         batch.require_dask()
     m = batch.load_manifest(manifest)
     total = len(m.jobs)
     done = 0
 
-    def report(r: batch.JobResult) -> None:
+    def report(r: "batch.JobResult") -> None:
         nonlocal done
         done += 1
         if r.status == "failed":

@@ -260,22 +260,29 @@ def to_dict(settings: Any) -> dict[str, Any]:
     return dataclasses.asdict(settings)
 
 
+def set_dotted(data: dict, dotted: str, value: Any, label: str = "") -> None:
+    """Set ``data["a"]["b"]["c"] = value`` for ``dotted = "a.b.c"``, creating sections.
+
+    A key on the way that holds a single setting is a one-line :class:`ConfigError`
+    (prefixed by ``label``, e.g. where the override came from).
+    """
+    keys = dotted.split(".")
+    node = data
+    for i, k in enumerate(keys[:-1]):
+        nxt = node.setdefault(k, {})
+        if not isinstance(nxt, dict):
+            where = ".".join(keys[: i + 1])
+            raise ConfigError(f"{label + '.' if label else ''}{where}: expected a mapping of settings, "
+                              f"got {short_repr(nxt)}")
+        node = nxt
+    node[keys[-1]] = value
+
+
 def _merge(base: dict, overrides: Mapping[str, Any]) -> dict:
     out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in base.items()}
     for dotted, value in overrides.items():
-        if value is None:
-            continue
-        keys = dotted.split(".")
-        node = out
-        for i, k in enumerate(keys[:-1]):
-            if k not in node:
-                node[k] = {}
-            nxt = node[k]
-            if not isinstance(nxt, dict):
-                where = ".".join(keys[: i + 1])
-                raise ConfigError(f"{where}: expected a mapping of settings, got {short_repr(nxt)}")
-            node = nxt
-        node[keys[-1]] = value
+        if value is not None:
+            set_dotted(out, dotted, value)
     return out
 
 

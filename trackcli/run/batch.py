@@ -88,10 +88,10 @@ from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 
 from trackcli import __version__
-from trackcli.io.config import Settings, load_settings, settings_from_dict, to_dict
+from trackcli.io.config import Settings, load_settings, set_dotted, settings_from_dict, to_dict
 from trackcli.errors import ConfigError, InputError, TrackcliError, short_repr
 from trackcli.io.outputs import ensure_dir, partial_name, write_text
-from trackcli.run.clips import clip_name, output_base, track_clip
+from trackcli.run.clips import clip_name, output_files, track_clip
 from trackcli.trackers import TRACKERS
 
 log = logging.getLogger(__name__)
@@ -419,17 +419,6 @@ def _flatten(overrides: Any, label: str) -> dict[str, Any]:
     return flat
 
 
-def _set(data: dict[str, Any], dotted: str, value: Any, label: str) -> None:
-    keys = dotted.split(".")
-    node = data
-    for i, k in enumerate(keys[:-1]):
-        nxt = node.setdefault(k, {})
-        if not isinstance(nxt, dict):
-            raise ConfigError(f"{label}.{'.'.join(keys[:i + 1])}: is a single setting, not a section")
-        node = nxt
-    node[keys[-1]] = value
-
-
 def _settings(where: str, entry: Mapping[str, Any], defaults: Mapping[str, Any], config: str | None) -> Settings:
     config_label = f"{where}.config" if "config" in entry else "defaults.config"
     try:
@@ -446,7 +435,7 @@ def _settings(where: str, entry: Mapping[str, Any], defaults: Mapping[str, Any],
             steps.append((label, {"video.fps": _positive(source["fps"], f"{label}.fps", default=0.0)}))
         for step_label, overrides in steps:
             for dotted, value in overrides.items():
-                _set(data, dotted, value, step_label)
+                set_dotted(data, dotted, value, step_label)
             try:
                 settings_from_dict(data)
             except ConfigError as exc:
@@ -499,10 +488,10 @@ def job_folder(outdir: str | os.PathLike[str], job: Job) -> Path:
 
 
 def _output_files(folder: Path, job: Job, scored: bool) -> dict[str, Path]:
-    base = output_base(folder, job.name, job.tracker)
-    files = {"csv": Path(f"{base}.csv"), "config": Path(f"{base}.config.yaml")}
+    every = output_files(folder, job.name, job.tracker)
+    files = {"csv": every["csv"], "config": every["config"]}
     if job.rrd and job.settings.output.rrd:
-        files["rrd"] = Path(f"{base}.rrd")
+        files["rrd"] = every["rrd"]
     if scored:
         files["score"] = folder / SCORE_FILE
     files["result"] = folder / RESULT_FILE
@@ -537,8 +526,7 @@ def _clear_outputs(folder: Path, job: Job) -> None:
     """Remove what earlier runs of this job left: result first, then outputs and temporaries."""
     names = [RESULT_FILE, SCORE_FILE]
     for tracker in TRACKERS:
-        base = output_base(folder, job.name, tracker).name
-        names += [f"{base}.csv", f"{base}.rrd", f"{base}.config.yaml"]
+        names += [p.name for p in output_files(folder, job.name, tracker).values()]
     for n in names:
         for p in (folder / n, partial_name(folder / n)):
             with contextlib.suppress(FileNotFoundError):

@@ -444,13 +444,28 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
 
 
 def output_base(outdir: str | os.PathLike[str], name: str, tracker: str) -> Path:
-    """``outdir/NAME.TRACKER``: the outputs are this plus ``.csv``, ``.rrd``, ``.config.yaml``."""
+    """``outdir/NAME.TRACKER``: the outputs are this plus the suffixes of :data:`OUTPUT_SUFFIXES`."""
     return Path(outdir) / f"{name}.{tracker}"
+
+
+#: the outputs of one run by kind, as suffixes of :func:`output_base`
+OUTPUT_SUFFIXES = {"csv": ".csv", "rrd": ".rrd", "config": ".config.yaml", "smoothed": ".smoothed.csv"}
+
+
+def output_files(outdir: str | os.PathLike[str], name: str, tracker: str) -> dict[str, Path]:
+    """Every output a run of ``tracker`` on clip ``name`` may write in ``outdir``, by kind."""
+    base = output_base(outdir, name, tracker)
+    return {kind: Path(f"{base}{suffix}") for kind, suffix in OUTPUT_SUFFIXES.items()}
 
 
 class _NullBar:
     def update(self, n: int) -> None:
         pass
+
+
+def no_progress() -> ContextManager[Any]:
+    """A progress bar that shows nothing (``with no_progress() as bar: bar.update(1)``)."""
+    return contextlib.nullcontext(_NullBar())
 
 
 def track_clip(
@@ -536,9 +551,9 @@ def track_clip(
         settings, sources = settings_with_model(settings, load_model(model).settings, explicit, f"model {model}")
         for section, source in sources.items():
             log.info("%s settings: %s", section, source)
-    base = output_base(outdir, name, tracker)
-    csv_path, rrd_path, config_path = (Path(f"{base}{ext}") for ext in (".csv", ".rrd", ".config.yaml"))
-    smooth_path = Path(f"{base}.smoothed.csv") if smooth else None
+    files = output_files(outdir, name, tracker)
+    csv_path, rrd_path, config_path = files["csv"], files["rrd"], files["config"]
+    smooth_path = files["smoothed"] if smooth else None
     write_rrd = rrd and settings.output.rrd
     refuse_overwriting_inputs({"the track CSV": csv_path, "the recording": rrd_path if write_rrd else None,
                                "the effective configuration": config_path, "the smoothed track": smooth_path},
@@ -564,7 +579,7 @@ def track_clip(
         params = {"clip": str(clip), "tracker": tracker, "source": setup.source, "settings": to_dict(settings)}
         # the seed as text: exact at any size, and of one type for every run in a process
         properties = {"seed": str(settings.seed), "clip": str(clip), "tracker": tracker, "trackcli": __version__}
-        bar_ctx = progress(f"{name} ({tracker})", len(video)) if progress else contextlib.nullcontext(_NullBar())
+        bar_ctx = progress(f"{name} ({tracker})", len(video)) if progress else no_progress()
         with bar_ctx as bar:
             summary = run_clip(video, make, space, tracker=tracker, csv_path=csv_path,
                                extra_columns=the_tracker.extra_columns,

@@ -27,12 +27,13 @@ from trackcli.dynamics.ar2 import AR2
 from trackcli.errors import ConfigError, DataError
 from trackcli.dynamics.learning import fit_ar2
 from trackcli.dynamics.model import Model
-from trackcli.run.clips import RunSummary, run_clip
+from trackcli.run.clips import RunSummary, no_progress, output_files, run_clip
 from trackcli.shapes.shape_space import ShapeSpace
 from trackcli.shapes.template import Template
 from trackcli.shapes.outline import build_space
 from trackcli.dynamics.handset import handset_dynamics
-from trackcli.trackers.kalman_tracker import track_kalman
+from trackcli.trackers.base import run_tracker
+from trackcli.trackers.kalman_tracker import KalmanTracker
 from trackcli.io.tracks import read_track
 
 log = logging.getLogger(__name__)
@@ -210,32 +211,36 @@ def train(
         measured: list[Any] = []  # per clip, the tracker's (z, S) of each frame (method "em")
         for video in clips:
             stem = Path(str(video.path)).stem or Path(str(video.path)).name
-            base = outdir / f"{stem}.cycle{cycle}"
+            files = output_files(outdir, stem, f"cycle{cycle}")
 
             info: list[Any] = []
             measured.append(info)
+            shapes: list[np.ndarray] = []
+            lost: list[bool] = []
 
-            def make(frames, space=space, dynamics=dynamics, info=info):
-                for result in track_kalman(frames, space, dynamics, settings.measurement, settings.kalman,
-                                           observation=settings.condensation):
+            def make(frames, space=space, dynamics=dynamics, info=info, shapes=shapes, lost=lost):
+                # the loop's results feed learning directly: the shapes, the verdicts, and for
+                # EM each frame's measurement
+                for result in run_tracker(KalmanTracker(space, dynamics, settings), frames):
+                    shapes.append(result.X)
+                    lost.append(bool(result.lost))
                     if method == "em":
                         info.append(result.display["information"])
                     yield result
 
             label = f"cycle {cycle}: {stem}"
-            ctx = progress(label, len(video)) if progress else _NullBar()
+            ctx = progress(label, len(video)) if progress else no_progress()
             with ctx as bar:
-                summary = run_clip(video, make, space, tracker="kalman", csv_path=Path(f"{base}.csv"),
-                                   rrd_path=Path(f"{base}.rrd") if write_rrd else None,
+                summary = run_clip(video, make, space, tracker="kalman", csv_path=files["csv"],
+                                   rrd_path=files["rrd"] if write_rrd else None,
                                    params={"cycle": cycle, "clip": str(video.path), "settings": to_dict(settings)},
                                    jpeg_quality=settings.output.jpeg_quality, progress=bar.update,
                                    outline_points=settings.output.outline_points,
                                    frames_mode=settings.output.frames,
                                    recording_id=f"{stem}-cycle{cycle}")
             rec.runs.append(summary)
-            _, X, _ = read_track(summary.csv, space.names)
-            sequences.append(X)
-            flags.append(read_lost(summary.csv, len(X)))
+            sequences.append(np.asarray(shapes, dtype=float).reshape(len(shapes), space.Nx))
+            flags.append(np.asarray(lost, dtype=bool))
             labels.append(f"{stem} (cycle {cycle})")
         tracked_space = space
         if kind == "pca" and cycle == 1:
@@ -275,17 +280,6 @@ def _learn_em(measured: Sequence[Sequence[Any]], sequences: Sequence[np.ndarray]
         z, S = np.array([z for z, _ in info]), np.array([S for _, S in info])
         seqs.append(InformationSequence(z, S, X) if space is tracked else change_space(z, S, tracked, space, X))
     return learn_em(seqs, tau, settings)
-
-
-class _NullBar:
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *a):
-        return False
-
-    def update(self, n: int) -> None:
-        pass
 
 
 def learn_from_tracks(track_paths: Sequence[str], template: Template, settings: Settings, tau: float,
