@@ -4,6 +4,9 @@ Commands are thin: they parse options, resolve inputs and outputs, call the libr
 write results.  Every :class:`~trackcli.errors.TrackcliError` becomes a one-line message on
 stderr and the exit code of its class; progress bars and logs go to stderr, results to
 stdout or files.
+
+One module (over 600 lines): Click commands only, one function per command with its
+options; the work of each is in :mod:`trackcli.run` and the other packages.
 """
 
 from __future__ import annotations

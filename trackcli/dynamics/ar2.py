@@ -24,6 +24,10 @@ its own oscillator (eq 9.30).
 Modal analysis (AC eqs 11.10-11.13) reads a model as a set of damped oscillations: each
 eigenvalue ``λ`` of ``A`` gives a damping ``β = -log|λ| / τ`` and a frequency
 ``f = arg λ / (2πτ)``; the upper half of its eigenvector is the pattern of motion.
+
+One module (over 600 lines): the model, its state-space form, steady state, modes, the
+hand-set oscillators and the partitioned construction are the AR(2) equations of AC
+ch. 9 and 11, each written once here for every other module to use.
 """
 
 from __future__ import annotations

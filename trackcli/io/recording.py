@@ -47,6 +47,9 @@ recorded; a selection (``--start/--end/--step``) stores only its own frames, as 
 Timelines: ``frame`` (sequence, the frame index) and ``video_time`` (duration, seconds
 from the start of the clip).  The wall-clock ``log_time`` timeline is switched off: it
 says nothing about the data.
+
+One module (over 600 lines): every entity path, colour and blueprint of a recording is
+defined here, so that the recording's layout can be read in one place.
 """
 
 from __future__ import annotations

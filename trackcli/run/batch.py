@@ -68,6 +68,10 @@ Executors: in-process one after another (``workers=1``), a pool of ``workers`` l
 processes (:class:`concurrent.futures.ProcessPoolExecutor`), or a Dask cluster (``scheduler``,
 an address or a ``distributed.Client``; needs ``pip install 'trackcli[dask]'``, and the
 workers must see the same file paths).
+
+One module (over 600 lines): manifest parsing, the job loop and the three schedulers
+(in process, worker processes, Dask) share the job and result types and the interrupt
+handling, which must stay in one place to be right.
 """
 
 from __future__ import annotations

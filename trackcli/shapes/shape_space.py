@@ -34,6 +34,9 @@ PCA modes of what a constructive space leaves unexplained (AC eqs 8.26–8.27). 
 ``"pca"``, or a constructive kind extended with ``"+keyframes"`` or ``"+pca"``; the first
 columns of an extended space are those of its base, so :meth:`ShapeSpace.pose` still
 reads them directly.
+
+One module (over 600 lines): every kind of space (constructive, PCA, extended) is a
+:class:`ShapeSpace` with the same metric and projections, built and serialised here.
 """
 
 from __future__ import annotations

@@ -25,6 +25,9 @@ exact signed area of the curve.  For an open curve they point to the left of the
 of increasing ``s`` as seen on the screen (with ``y`` down): a curve running left to right
 has normals pointing up, towards smaller ``y``.  Formally ``n = (t_y, −t_x) / |t|`` for the
 tangent ``t = dr/ds``.
+
+One module (over 600 lines) because the basis, the curve sampler and the fit share the
+span and knot arithmetic; split, each part would re-derive it.
 """
 
 from __future__ import annotations
