@@ -143,10 +143,7 @@ def test_seeds_climb_to_different_maxima():
     assert kept.size == 2
 
 
-def test_weights_pair_the_likelihood_with_the_prior_mode():
-    means = np.array([[0.0], [10.0]])
-    precs = np.array([[[1.0]], [[0.25]]])
-    w = modes.hypothesis_log_weights(np.array([[1.0], [12.0]]), np.array([0, 1]), means, precs,
-                                     np.log([0.5, 0.5]), np.array([2.0, 3.0]))
-    assert np.allclose(w, [np.log(0.5) - 0.5 + 2.0, np.log(0.5) - 0.5 + 3.0])
+def test_weights_are_the_prior_mode_weight_times_the_likelihood():
+    w = modes.hypothesis_log_weights(np.array([0, 1, 1]), np.log([0.2, 0.8]), np.array([2.0, 3.0, 1.0]))
+    assert np.allclose(w, [np.log(0.2) + 2.0, np.log(0.8) + 3.0, np.log(0.8) + 1.0])
     assert np.isclose(np.exp(modes.normalise_log(w)).sum(), 1.0)

@@ -9,10 +9,11 @@ modes (a piecewise-Gaussian density); each frame (the steps are :mod:`trackcli.t
 3. each seed climbs to a local maximum by ``mht.iterations`` Gauss–Newton steps: the
    Kalman tracker's measurement (the best feature inside the validation gate of every
    normal, :func:`trackcli.observe.measure.kalman_features`, summed into ``Z, S`` by
-   :func:`trackcli.observe.measure.aggregate`) made at the seed's current curve, then
+   :func:`trackcli.observe.measure.aggregate`) made at the seed's current curve with the
+   gates of its mode's prediction, then
    assimilated against the seed's prior mode (:func:`trackcli.trackers.kalman.assimilate`);
-4. each refined curve is weighted by its prior mode's density there and by the observation
-   model of CONDENSATION (``condensation.likelihood``: the discriminant by default);
+4. each refined curve is weighted by its prior mode's weight and by the observation model
+   of CONDENSATION (``condensation.likelihood``: the discriminant by default);
 5. curves within ``mht.merge_distance`` px (RMS displacement) of a heavier one are merged
    into it and the ``K`` heaviest modes are kept.
 
@@ -125,7 +126,7 @@ class MHTTracker(Tracker):
         X = np.stack([r.X for r in refined])
         pts, nrm = space.points_normals(X, self.sampler)
         ll = np.asarray(self.observation.log_likelihood(pts, nrm), dtype=float)
-        log_w = modes.hypothesis_log_weights(X, parent, means, modes.precisions(covs), self.log_w, ll)
+        log_w = modes.hypothesis_log_weights(parent, self.log_w, ll)
         keep = modes.merge_modes(X, log_w, space.H, s.merge_distance, s.modes)
         self.modes = [refined[i] for i in keep]
         self.log_w = modes.normalise_log(log_w[keep])

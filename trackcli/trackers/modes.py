@@ -18,9 +18,9 @@ mode ``j``'s peak (not its mass, so a cluster of weak modes does not outweigh a 
    measurement along the normals of the current curve and a Kalman assimilation against
    the seed's prior mode (an iterated Kalman update, which is Gauss–Newton on the posterior;
    its covariance is the mode's local statistics, 004 §3.3.3);
-4. each refined hypothesis weighted by its prior mode's density there times the likelihood
-   of its curve (:func:`hypothesis_log_weights`, 004 §3.4: a likelihood mode paired with its
-   prior mode);
+4. each refined hypothesis weighted by its prior mode's weight times the likelihood of its
+   curve (:func:`hypothesis_log_weights`, 004 §3.4: a likelihood mode paired with its prior
+   mode);
 5. hypotheses that converged to the same place merged and the best ``K`` kept
    (:func:`merge_modes`).
 
@@ -144,8 +144,9 @@ def refine(prior: Sequence[KalmanState], parent: np.ndarray, seeds: np.ndarray, 
     """Take every seed to a local maximum of its posterior by Gauss–Newton steps (004 §3.3.3).
 
     Step ``i`` measures the curves at the current shapes ``X_i`` (the seeds at first), with
-    gates from the prior covariance of the seed's mode at first and from the refined
-    covariance afterwards.  The information ``Z_i`` of that measurement is relative to
+    the validation gates of the seed's prior mode (AC Fig 8.6: the uncertainty of the
+    prediction, now centred on the current curve; narrowing them to the refined covariance
+    lets a step that went astray lock onto clutter).  The information ``Z_i`` of that measurement is relative to
     ``X_i``; relative to the mode's prediction ``X̃`` it is ``Z_i + S_i (X_i - X̃)``, and
     :func:`trackcli.trackers.kalman.assimilate` against the prior mode gives the next
     shape and its covariance.  Which feature each normal takes depends on where the curve
@@ -183,22 +184,21 @@ def refine(prior: Sequence[KalmanState], parent: np.ndarray, seeds: np.ndarray, 
             mode = prior[j]
             states.append(kalman.assimilate(mode, Z[i] + S[i] @ (X[i] - mode.X), S[i]))
         X = np.stack([s.X for s in states])
-        P = np.stack([s.P for s in states])
     return states
 
 
-def hypothesis_log_weights(X: np.ndarray, parent: np.ndarray, prior_means: np.ndarray, prior_precs: np.ndarray,
-                           prior_log_w: np.ndarray, loglik: np.ndarray) -> np.ndarray:
-    """Log posterior height of each refined hypothesis (004 eq 1 with its prior mode, §3.4).
+def hypothesis_log_weights(parent: np.ndarray, prior_log_w: np.ndarray, loglik: np.ndarray) -> np.ndarray:
+    """Log weight of each refined hypothesis: its prior mode's weight times its likelihood.
 
-    ``log w_j - ½ (X - X̃_j)ᵀ P̃_j⁻¹ (X - X̃_j) + log p(z | X)`` with ``j`` the hypothesis's
-    prior mode: (N, Nx) shapes, (N,) parents and log-likelihoods → (N,).
+    ``log w_j + log p(z | X)`` with ``j`` the hypothesis's prior mode, (N,) parents and
+    log-likelihoods → (N,).  The refinement already pairs the hypothesis with its prior mode
+    (004 §3.4); its weight is not lowered further by its distance from the prediction: as
+    004 argues for weak predictors, the likelihood decides between the modes, and a mode
+    held in place by a confident prediction is exactly how a single Kalman filter is lured
+    away by clutter.
     """
-    X = np.atleast_2d(np.asarray(X, dtype=float))
     parent = np.asarray(parent, dtype=int)
-    d = X - np.asarray(prior_means, dtype=float)[parent]
-    maha = np.einsum("ni,nij,nj->n", d, np.asarray(prior_precs)[parent], d)
-    return np.asarray(prior_log_w, dtype=float)[parent] - 0.5 * maha + np.asarray(loglik, dtype=float)
+    return np.asarray(prior_log_w, dtype=float)[parent] + np.asarray(loglik, dtype=float)
 
 
 def merge_modes(X: np.ndarray, log_w: np.ndarray, metric: np.ndarray, distance: float, keep: int) -> np.ndarray:
