@@ -141,11 +141,9 @@ class MHTTracker(Tracker):
         conf, log_d, _ = judge.confidence(ev, pts[b], nrm[b], spread)
         weights = np.exp(self.log_w)
         extra: dict[str, float] = {"modes": float(len(keep))}
-        centroids = []
         for j in range(s.modes):
             if j < len(keep):
                 _, c, _ = contour_summary(space, self.modes[j].X)
-                centroids.append(c)
             else:
                 c = (math.nan, math.nan)
             extra[f"w_mode{j + 1}"] = float(weights[j]) if j < len(keep) else math.nan
@@ -163,7 +161,6 @@ class MHTTracker(Tracker):
                 "features": gp[found] + nu[found, None] * gn[found],
                 "particle_contours": pts[keep],
                 "particle_weights": weights / weights.max(),
-                "particle_centroids": np.asarray(centroids),
                 "state": state,
             },
         )
