@@ -110,7 +110,7 @@ def _linear_measure(target: np.ndarray, info: float):
 def test_one_step_from_the_prediction_is_the_kalman_update():
     prior = _state(np.array([1.0, -2.0]))
     measure = _linear_measure(np.array([3.0, 0.5]), 0.5)
-    (state,) = modes.refine([prior], np.array([0]), prior.X[None], measure, 1)
+    (state,) = modes.refine([prior], prior.X[None], measure, 1)
     Z, S = measure(prior.X[None], prior.P[None])
     expected = kalman.assimilate(prior, Z[0], S[0])
     assert np.allclose(state.mean, expected.mean) and np.allclose(state.cov, expected.cov)
@@ -120,7 +120,7 @@ def test_a_linear_measurement_gives_one_answer_from_any_seed():
     prior = _state(np.array([0.0, 0.0]))
     measure = _linear_measure(np.array([3.0, 1.0]), 0.5)
     seeds = np.array([[0.0, 0.0], [5.0, -4.0], [-3.0, 2.0]])
-    out = modes.refine([prior], np.zeros(3, dtype=int), seeds, measure, 3)
+    out = modes.refine([prior] * 3, seeds, measure, 3)
     X = np.stack([s.X for s in out])
     assert np.allclose(X, X[0])
 
@@ -136,7 +136,7 @@ def test_seeds_climb_to_different_maxima():
         return 4.0 * (nearest - X[:, 0])[:, None], S
 
     prior = KalmanState(np.zeros(2), np.diag([100.0, 100.0]))
-    out = modes.refine([prior], np.zeros(4, dtype=int), np.array([[-3.0], [-1.0], [2.0], [7.0]]), measure, 4)
+    out = modes.refine([prior] * 4, np.array([[-3.0], [-1.0], [2.0], [7.0]]), measure, 4)
     X = np.array([s.X[0] for s in out])
     assert np.allclose(X[:2], -5.0, atol=0.1) and np.allclose(X[2:], 5.0, atol=0.1)
     kept = modes.merge_modes(X[:, None], np.zeros(4), np.eye(1), 1.0, 10)

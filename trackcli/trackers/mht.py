@@ -5,7 +5,9 @@ modes (a piecewise-Gaussian density); each frame (the steps are :mod:`trackcli.t
 
 1. every mode is predicted by the AR(2) dynamics (AC Fig 10.3);
 2. ``K·S`` seeds (``S = mht.samples``) are drawn from that prior: each mode's prediction and
-   draws around the modes in proportion to their weights;
+   draws around the modes in proportion to their weights; the drawn seeds also jump as
+   CONDENSATION's samples do (``condensation.jump_fraction`` of them, by
+   ``condensation.jump_size`` object sizes RMS in translation: the motion prior is one);
 3. each seed climbs to a local maximum by ``mht.iterations`` Gauss–Newton steps: the
    Kalman tracker's measurement (the best feature inside the validation gate of every
    normal, :func:`trackcli.observe.measure.kalman_features`, summed into ``Z, S`` by
@@ -45,6 +47,7 @@ from trackcli.shapes.outline import contour_summary, measurement_sampler
 from trackcli.shapes.shape_space import ShapeSpace
 from trackcli.trackers import kalman, modes
 from trackcli.trackers.base import FrameData, FrameResult, Tracker
+from trackcli.trackers.condensation_tracker import translation_jumps
 from trackcli.trackers.kalman_tracker import kalman_sigma
 
 
@@ -75,6 +78,7 @@ class MHTTracker(Tracker):
         self.log_w = np.zeros(1)
         self.observation = observation_model(settings.condensation.likelihood, m, settings.condensation)
         self.judge: Presence | None = None
+        self.jumps = None
         self.centre = space.origin + self.X0[:2]
 
     # ------------------------------------------------------------------------------------------
@@ -105,6 +109,26 @@ class MHTTracker(Tracker):
 
         return run, last
 
+    def _jump(self, prior: list[kalman.KalmanState], parent: np.ndarray, seeds: np.ndarray
+              ) -> tuple[np.ndarray, list[kalman.KalmanState]]:
+        """The jumps of the motion prior on the drawn seeds (not the modes' predictions).
+
+        A jump is a displacement in translation (:func:`translation_jumps`, CONDENSATION's);
+        a seed that jumps carries its prior mode with it, previous shape included, so the
+        jump does not read as velocity.  Returns the seeds and the prior of each.
+        """
+        k = len(prior)
+        seed_prior = [prior[j] for j in parent]
+        if self.jumps is None or seeds.shape[0] <= k:
+            return seeds, seed_prior
+        prev = np.stack([prior[j].X_prev for j in parent[k:]])
+        _, moved, _ = self.jumps(prev, seeds[k:], self.rng)
+        shift = moved - seeds[k:]
+        for i in np.flatnonzero(np.any(shift != 0, axis=1)):
+            p = seed_prior[k + i]
+            seed_prior[k + i] = kalman.KalmanState(p.mean + np.concatenate([shift[i], shift[i]]), p.cov)
+        return np.concatenate([seeds[:k], moved]), seed_prior
+
     def step(self, frame: FrameData) -> FrameResult:
         space, s, m = self.space, self.settings.mht, self.settings.measurement
         first = self.judge is None
@@ -112,6 +136,8 @@ class MHTTracker(Tracker):
         if first:
             self.judge = Presence.learn(frame.image, fimg, space, self.sampler, self.X0, m, self.settings.condensation)
             self.observation.start(frame.image, fimg, space, self.sampler, self.X0, presence=self.judge)
+            c = self.settings.condensation
+            self.jumps = translation_jumps(c.jump_fraction, c.jump_size * self.judge.app.size)
         judge = self.judge
         ev = judge.evidence(frame.image, fimg, self.centre)
         self.observation.prepare(frame.image, fimg, ev)
@@ -121,8 +147,9 @@ class MHTTracker(Tracker):
         covs = np.stack([p.P for p in prior])
         seeds, parent = modes.draw_seeds(means, covs, self.log_w, s.modes * s.samples, self.rng, spread=s.spread,
                                          truncate=s.truncate)
+        seeds, seed_prior = self._jump(prior, parent, seeds)
         run, last = self._measure(fimg)
-        refined = modes.refine(prior, parent, seeds, run, s.iterations)
+        refined = modes.refine(seed_prior, seeds, run, s.iterations)
         X = np.stack([r.X for r in refined])
         pts, nrm = space.points_normals(X, self.sampler)
         ll = np.asarray(self.observation.log_likelihood(pts, nrm), dtype=float)

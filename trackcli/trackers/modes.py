@@ -139,8 +139,7 @@ def draw_seeds(means: np.ndarray, covs: np.ndarray, log_w: np.ndarray, n: int, r
     return np.concatenate(seeds), np.concatenate(parent)
 
 
-def refine(prior: Sequence[KalmanState], parent: np.ndarray, seeds: np.ndarray, measure: Measure,
-           iterations: int) -> list[KalmanState]:
+def refine(prior: Sequence[KalmanState], seeds: np.ndarray, measure: Measure, iterations: int) -> list[KalmanState]:
     """Take every seed to a local maximum of its posterior by Gauss–Newton steps (004 §3.3.3).
 
     Step ``i`` measures the curves at the current shapes ``X_i`` (the seeds at first), with
@@ -155,10 +154,9 @@ def refine(prior: Sequence[KalmanState], parent: np.ndarray, seeds: np.ndarray, 
 
     Parameters
     ----------
-    prior : sequence of KalmanState
-        The predicted modes.
-    parent : ndarray of shape (N,), int
-        The mode of each seed.
+    prior : sequence of N KalmanState
+        The prior of each seed: its predicted mode (displaced with the seed when the motion
+        prior made it jump).
     seeds : ndarray of shape (N, Nx)
     measure : callable
         ``measure(X, P) -> (Z, S)`` (see :data:`Measure`).
@@ -173,16 +171,14 @@ def refine(prior: Sequence[KalmanState], parent: np.ndarray, seeds: np.ndarray, 
     if iterations < 1:
         raise ConfigError(f"iterations: expected an integer >= 1, got {iterations!r}")
     seeds = np.atleast_2d(np.asarray(seeds, dtype=float))
-    parent = np.asarray(parent, dtype=int)
+    if len(prior) != seeds.shape[0]:
+        raise DataError(f"refine: expected one prior per seed, got {len(prior)} for {seeds.shape[0]} seeds")
     X = seeds.copy()
-    P = np.stack([prior[j].P for j in parent])
+    P = np.stack([p.P for p in prior])
     states: list[KalmanState] = []
     for _ in range(iterations):
         Z, S = measure(X, P)
-        states = []
-        for i, j in enumerate(parent):
-            mode = prior[j]
-            states.append(kalman.assimilate(mode, Z[i] + S[i] @ (X[i] - mode.X), S[i]))
+        states = [kalman.assimilate(p, Z[i] + S[i] @ (X[i] - p.X), S[i]) for i, p in enumerate(prior)]
         X = np.stack([s.X for s in states])
     return states
 
