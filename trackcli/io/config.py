@@ -188,7 +188,7 @@ class MHTSettings:
     samples: int = _f(10, "int", "seeds per mode S: each frame starts K*S local searches, the modes' predictions among them", lo=1, hi=10000)
     iterations: int = _f(3, "int", "Gauss-Newton steps (measure along the normals, assimilate) that take a seed to its mode", lo=1, hi=50)
     merge_distance: float = _f(2.0, "float", "hypotheses closer than this (RMS curve displacement, px) are one mode", lo=0, lo_open=True, hi=1000)
-    spread: float = _f(1.0, "float", "factor on the predicted standard deviations that seeds are drawn with", lo=0, lo_open=True, hi=100)
+    spread: float = _f(2.0, "float", "factor on the predicted standard deviations that seeds are drawn with (wider than the prior: a seed only needs to start in the basin of a mode)", lo=0, lo_open=True, hi=100)
     truncate: bool = _f(True, "bool", "keep a seed only inside the cell of the piecewise-Gaussian prior that its mode owns (the paper's rejection step)")
 
 
