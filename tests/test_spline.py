@@ -70,8 +70,11 @@ def test_closed_basis_is_periodic(degree, extra, s, shift):
     basis = SplineBasis(degree + 1 + extra, degree, closed=True)
     s = np.array(s)
     np.testing.assert_allclose(basis.basis(s), basis.basis(s + shift * basis.L), atol=1e-10)
+    # a degree-1 spline's derivative jumps at the knots (the integers): a knot moved by a
+    # period lands on either side of it in floating point, so those points are left out
+    smooth = np.abs(s - np.round(s)) > 1e-6 if degree == 1 else np.ones(s.shape, bool)
     np.testing.assert_allclose(
-        basis.basis_derivative(s), basis.basis_derivative(s + shift * basis.L), atol=1e-9
+        basis.basis_derivative(s[smooth]), basis.basis_derivative(s[smooth] + shift * basis.L), atol=1e-9
     )
 
 

@@ -718,15 +718,13 @@ def truncated_log_likelihood(
         Search half-width ``delta``, pixels; also sets the penalty ``rho = h^2``.
     sigma : float
         Scale of the quadratic, pixels.
-    threshold : float
-        Contrast threshold, grey levels per pixel.
-    polarity : {"any", "light_to_dark", "dark_to_light"}
-        Accepted sign of the intensity change along the normal.
+    threshold, polarity
+        As for :func:`log_likelihood`.
 
     Returns
     -------
     ndarray of shape (...), float64
-        One log-likelihood per curve, e.g. (N,).
+        The log-likelihood of each curve, bounded above by 0.
     """
     if not (np.isfinite(sigma) and sigma > 0):
         raise ConfigError(f"sigma: expected a number > 0, got {sigma!r}")

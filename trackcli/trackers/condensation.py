@@ -293,6 +293,30 @@ class StepInfo(NamedTuple):
 # One time-step
 
 
+def weigh(samples: np.ndarray, loglik: Callable[[np.ndarray], np.ndarray],
+          base: np.ndarray | float = 0.0) -> tuple[np.ndarray, np.ndarray, bool]:
+    """The weighting step of AC Fig 12.6: ``log π = base + log p(Z | X)``, normalised.
+
+    ``loglik`` is called on blocks of at most :data:`LOGLIK_BLOCK` samples (bounded
+    memory); ``base`` holds the log-weights the samples carry into the step (zeros after
+    selection, plus any importance correction).  Returns ``(log-likelihoods (n,),
+    normalised log-weights (n,), degenerate)``; ``degenerate`` is True when every weight was
+    zero and the weights were made uniform.
+    """
+    n = samples.shape[0]
+    ll = np.empty(n)
+    for b0 in range(0, n, LOGLIK_BLOCK):
+        block = samples[b0 : b0 + LOGLIK_BLOCK]
+        part = np.asarray(loglik(block), dtype=np.float64)
+        if part.shape != (block.shape[0],):
+            raise DataError(f"loglik: expected an array of shape ({block.shape[0]},), got {part.shape}")
+        ll[b0 : b0 + block.shape[0]] = part
+    if (ll == np.inf).any():
+        raise DataError("loglik: returned +inf; a log-likelihood must be finite or -inf")
+    log_w, degenerate = _log_normalise(base + ll)
+    return ll, log_w, degenerate
+
+
 def step(
     particles: ParticleSet,
     dynamics: Any,
@@ -369,16 +393,7 @@ def step(
     if propose is not None:
         cur, new, correction = propose(cur, new, rng)
         base = base + np.asarray(correction, dtype=np.float64)
-    ll = np.empty(n_out)
-    for b0 in range(0, n_out, LOGLIK_BLOCK):
-        block = new[b0 : b0 + LOGLIK_BLOCK]
-        part = np.asarray(loglik(block), dtype=np.float64)
-        if part.shape != (block.shape[0],):
-            raise DataError(f"loglik: expected an array of shape ({block.shape[0]},), got {part.shape}")
-        ll[b0 : b0 + block.shape[0]] = part
-    if (ll == np.inf).any():
-        raise DataError("loglik: returned +inf; a log-likelihood must be finite or -inf")
-    out_log_w, degenerate = _log_normalise(base + ll)
+    ll, out_log_w, degenerate = weigh(new, loglik, base)
     out = ParticleSet(prev=cur, cur=new, log_w=out_log_w)
     info = StepInfo(
         ess=effective_sample_size(np.exp(out_log_w)),
