@@ -15,8 +15,8 @@ mode ``j``'s peak (not its mass, so a cluster of weak modes does not outweigh a 
    predicted mean, then draws from mode ``j`` chosen with probability ``∝ w_j``, kept only
    when they fall in mode ``j``'s own cell of the piecewise density;
 3. every seed refined to a local maximum (:func:`refine`): Gauss–Newton steps, each one a
-   measurement along the normals of the current curve and a Kalman assimilation against
-   the seed's prior mode (an iterated Kalman update, which is Gauss–Newton on the posterior;
+   measurement along the normals of the current curve (gated by the prior mode) and a Kalman
+   assimilation against the seed's prior mode (an iterated Kalman update, which is Gauss–Newton on the posterior;
    its covariance is the mode's local statistics, 004 §3.3.3);
 4. each refined hypothesis weighted by its prior mode's weight times the likelihood of its
    curve (:func:`hypothesis_log_weights`, 004 §3.4: a likelihood mode paired with its prior
@@ -144,9 +144,9 @@ def refine(prior: Sequence[KalmanState], seeds: np.ndarray, measure: Measure, it
 
     Step ``i`` measures the curves at the current shapes ``X_i`` (the seeds at first), with
     the validation gates of the seed's prior mode (AC Fig 8.6: the uncertainty of the
-    prediction, now centred on the current curve; narrowing them to the refined covariance
-    lets a step that went astray lock onto clutter).  The information ``Z_i`` of that measurement is relative to
-    ``X_i``; relative to the mode's prediction ``X̃`` it is ``Z_i + S_i (X_i - X̃)``, and
+    prediction, now centred on the current curve; gates narrowed to the refined covariance
+    lost the object on the cluttered sample clip).  The information ``Z_i`` of that
+    measurement is relative to ``X_i``; relative to the mode's prediction ``X̃`` it is ``Z_i + S_i (X_i - X̃)``, and
     :func:`trackcli.trackers.kalman.assimilate` against the prior mode gives the next
     shape and its covariance.  Which feature each normal takes depends on where the curve
     is, so seeds in different places climb to different maxima.  With a seed at the
