@@ -127,3 +127,23 @@ def test_smoothing_an_mht_track_is_refused(setup, work):
     clip, template = setup
     result = run(["track", clip, "--template", template, "--tracker", "mht", "--smooth", "-o", work / "s"], code=3)
     assert "--smooth" in result.output and len(result.output.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("shape_space", ["translation", "affine"])
+def test_mht_runs_on_other_shape_spaces(setup, work, truth, shape_space):
+    got = track(setup, work, f"mht-{shape_space}", "mht", f"shape_space: {shape_space}\n")
+    assert len(got) == FRAMES
+    assert all(1 <= int(float(r["modes"])) <= K for r in got)
+    err = np.hypot(float(got[-1]["cx"]) - truth.cx[FRAMES - 1], float(got[-1]["cy"]) - truth.cy[FRAMES - 1])
+    assert err < 5.0
+
+
+def test_mht_follows_an_open_curve(setup, work):
+    clip, _ = setup
+    template = work / "open.yaml"
+    run(["draw", clip, "--points", "190,230 200,140 240,105 280,140 290,230", "--open", "-o", template])
+    cfg = work / "open-config.yaml"
+    cfg.write_text("video:\n  end: 20\n", encoding="utf-8")
+    run(["track", clip, "--template", template, "--tracker", "mht", "-c", cfg, "-o", work / "open", "--no-rrd"])
+    got = rows(work / "open" / "train.mht.csv")
+    assert len(got) == 20 and all(math.isfinite(float(r["cx"])) for r in got)
