@@ -154,19 +154,41 @@ def run_trackcli_seeds(clip: Clip, work: Path, extra: list[str], runs: int) -> t
 
 
 def run_trackcli(clip: Clip, work: Path, extra: list[str]) -> tuple[dict, float]:
+    """Draw the template from the frame-0 box, track with ``extra`` options, score: ``(scores, wall s)``."""
+    tmpl, error = draw_template(clip, work)
+    if error:
+        return {"error": error}, 0.0
+    return track_and_score(clip, tmpl, work, extra)
+
+
+def draw_template(clip: Clip, work: Path) -> tuple[Path, str | None]:
+    """``trackcli draw --box`` on frame 0 from the ground truth's box: ``(template, error or None)``."""
     tmpl = work / f"{clip.name}.template.yaml"
     box = ",".join(f"{v:.2f}" for v in clip.box)
     r = _cli("draw", str(clip.path), "--box", box, "-o", str(tmpl), "--preview", str(work / f"{clip.name}.png"))
     if r.returncode:
-        return {"error": "draw: " + r.stderr.strip().splitlines()[-1]}, 0.0
+        return tmpl, "draw: " + r.stderr.strip().splitlines()[-1]
+    return tmpl, None
+
+
+def track_and_score(clip: Clip, template: Path, work: Path, extra: list[str]) -> tuple[dict, float]:
+    """``trackcli track --template`` with ``extra`` options, scored against the truth: ``(scores, wall s)``.
+
+    The scores include ``fps``, the tracker's own frames per second (decoding excluded) from
+    the command's JSON summary.
+    """
     out = work / clip.name
     t0 = time.perf_counter()
-    r = _cli("track", "--template", str(tmpl), str(clip.path), "-o", str(out), "--no-rrd", "--json", *extra)
+    r = _cli("track", "--template", str(template), str(clip.path), "-o", str(out), "--no-rrd", "--json", *extra)
     wall = time.perf_counter() - t0
     if r.returncode:
         return {"error": "track: " + (r.stderr.strip().splitlines() or ["?"])[-1]}, wall
-    csvs = sorted(out.glob("*.condensation.csv")) or sorted(out.glob("*.csv"))
-    return score(csvs[0], clip), wall
+    summary = next((json.loads(line) for line in r.stdout.splitlines() if line.startswith("{")), {})
+    csv = Path(summary["csv"]) if summary.get("csv") else (
+        sorted(out.glob("*.condensation.csv")) or sorted(out.glob("*.csv")))[0]
+    res = score(csv, clip)
+    res["fps"] = summary.get("tracker_fps")
+    return res, wall
 
 
 # ---------------------------------------------------------------------------------------------

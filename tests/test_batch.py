@@ -27,6 +27,7 @@ from trackcli.run import batch
 from trackcli.cli import cli
 from trackcli.errors import ConfigError, InputError
 from trackcli.run.evaluate import evaluate, load_truth
+from trackcli.trackers import TRACKERS
 
 FRAMES = 12
 PARTICLES = 60
@@ -368,7 +369,7 @@ def test_settings_merge_in_order(inputs, tmp_path):
     (lambda d: d["clips"][0].update(clip="absent.mp4"), 4, "clips[0].clip: no such file or folder: "),
     (lambda d: d["defaults"].update(model="absent.yaml"), 4, "defaults.model: no such file: "),
     (lambda d: d["clips"][2].update(tracker="meanshift"), 3,
-     "clips[2].tracker: expected one of condensation, kalman, got 'meanshift'"),
+     f"clips[2].tracker: expected one of {', '.join(TRACKERS)}, got 'meanshift'"),
     (lambda d: d["clips"][1].update(settings={"condensation": {"particles": 0}}), 3,
      "clips[1].settings.condensation.particles: expected an integer in [1, 1000000], got 0"),
     (lambda d: d["defaults"].update(settings={"condensation.particlez": 5}), 3,

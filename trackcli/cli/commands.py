@@ -347,7 +347,8 @@ def _video_overrides(fps, start, end, step) -> dict:
               help="Template drawn on this clip: the initial placement (with --model) or, alone, "
                    "the shape to track with hand-set dynamics.")
 @click.option("--tracker", type=click.Choice(list(TRACKERS)), default="condensation", show_default=True,
-              help="CONDENSATION (particle filter, robust to clutter) or the Kalman contour tracker.")
+              help="CONDENSATION (particle filter, robust to clutter), the Kalman contour tracker, or mht "
+                   "(a few Gaussian modes refined by Gauss-Newton steps; settings in mht:).")
 @click.option("--particles", type=click.IntRange(min=1), help="CONDENSATION sample-set size N (condensation.particles).")
 @click.option("--seed", type=click.IntRange(min=0), help="Random seed (same seed, same numbers).")
 @click.option("-o", "--outdir", type=click.Path(file_okay=False), default="trackcli-out", show_default=True,

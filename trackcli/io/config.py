@@ -183,6 +183,16 @@ class CondensationSettings:
 
 
 @dataclass(frozen=True)
+class MHTSettings:
+    modes: int = _f(3, "int", "most modes K kept each frame (mode-based multiple hypotheses, Cham & Rehg 1999)", lo=1, hi=100)
+    samples: int = _f(10, "int", "seeds per mode S: each frame starts K*S local searches, the modes' predictions among them", lo=1, hi=10000)
+    iterations: int = _f(3, "int", "Gauss-Newton steps (measure along the normals, assimilate) that take a seed to its mode", lo=1, hi=50)
+    merge_distance: float = _f(2.0, "float", "hypotheses closer than this (RMS curve displacement, px) are one mode", lo=0, lo_open=True, hi=1000)
+    spread: float = _f(2.0, "float", "factor on the predicted standard deviations that seeds are drawn with (wider than the prior: a seed only needs to start in the basin of a mode)", lo=0, lo_open=True, hi=100)
+    truncate: bool = _f(True, "bool", "keep a seed only inside the cell of the piecewise-Gaussian prior that its mode owns (the paper's rejection step)")
+
+
+@dataclass(frozen=True)
 class PlacementSettings:
     translation_noise: float = _f(1.0, "float", "factor on a learned model's translational process noise when it tracks a clip: how much more agile the motion is than in training (1 = as learned)", lo=0, lo_open=True, hi=1000)
     deformation_noise: float = _f(1.0, "float", "the same factor for the rest of shape-space (rotation, scale, other deformation)", lo=0, lo_open=True, hi=1000)
@@ -225,6 +235,7 @@ class Settings:
     kalman: KalmanSettings = _section(KalmanSettings, "Kalman contour tracker")
     dynamics: DynamicsSettings = _section(DynamicsSettings, "hand-set AR(2) dynamics")
     condensation: CondensationSettings = _section(CondensationSettings, "CONDENSATION")
+    mht: MHTSettings = _section(MHTSettings, "mode-based multiple hypotheses (--tracker mht; observation model and gates from condensation and kalman)")
     placement: PlacementSettings = _section(PlacementSettings, "a learned model tracking a clip (track --model)")
     learning: LearningSettings = _section(LearningSettings, "learning dynamics")
     output: OutputSettings = _section(OutputSettings, "outputs")

@@ -508,7 +508,7 @@ def track_clip(
         Output folder.
     model, template : path, optional
         What to track (at least one), see :func:`tracking_setup`.
-    tracker : {"condensation", "kalman"}
+    tracker : {"condensation", "kalman", "mht"}
     name : str, optional
         Output file prefix; default :func:`clip_name` of ``clip``.
     rrd : bool
@@ -544,6 +544,9 @@ def track_clip(
     from trackcli.trackers.base import run_tracker
 
     tracker_cls = tracker_class(tracker)
+    if smooth and tracker == "mht":
+        raise ConfigError("--smooth: not available with --tracker mht (its estimate may jump from one mode to "
+                          "another); smooth a kalman or condensation track")
     name = name or clip_name(clip)
     if model and explicit is not None:
         from trackcli.dynamics.model import load_model, settings_with_model
@@ -561,7 +564,7 @@ def track_clip(
     v = settings.video
     with open_video(clip, fps=v.fps, start=v.start, end=v.end, step=v.step) as video, output_dir(outdir):
         # a CONDENSATION sample set drawn from the steady state does not start at the template
-        at_template = tracker == "kalman" or settings.condensation.init == "template"
+        at_template = tracker != "condensation" or settings.condensation.init == "template"
         setup = tracking_setup(model, template, settings, video, starts_at_template=at_template)
         space, dynamics, X0 = setup.space, setup.dynamics, setup.X0
         rng = np.random.default_rng(settings.seed)
@@ -608,3 +611,8 @@ def _log_setup(name: str, tracker: str, setup: TrackingSetup, settings: Settings
         c = settings.condensation
         log.info("%s: seed %d; samples %d falling to %d over %d frames; likelihood %s, init %s", name,
                  settings.seed, c.initial_particles, c.particles, c.schedule_frames, c.likelihood, c.init)
+    elif tracker == "mht":
+        s = settings.mht
+        log.info("%s: seed %d; at most %d modes, %d seeds per mode, %d Gauss-Newton steps, merged within %g px; "
+                 "likelihood %s", name, settings.seed, s.modes, s.samples, s.iterations, s.merge_distance,
+                 settings.condensation.likelihood)

@@ -11,6 +11,8 @@
 - :mod:`.kalman_tracker` — the Kalman contour tracker (AC ch. 10) on that interface.
 - :mod:`.condensation_tracker` — CONDENSATION over curve shape (AC ch. 12) on that interface:
   initial sets, jumps in the motion prior, re-acquisition after loss.
+- :mod:`.modes` and :mod:`.mht` — mode-based multiple hypotheses (Cham & Rehg 1999): a few
+  Gaussian modes, seeds from the prior refined by Gauss–Newton steps, merged and weighted.
 - :mod:`.smoothing` — Rauch–Tung–Striebel smoothing of a Kalman track and
   forward-filtering backward-smoothing of a particle track.
 """
@@ -25,6 +27,7 @@ from typing import Any
 TRACKERS: dict[str, str] = {
     "condensation": "trackcli.trackers.condensation_tracker:CondensationTracker",
     "kalman": "trackcli.trackers.kalman_tracker:KalmanTracker",
+    "mht": "trackcli.trackers.mht:MHTTracker",
 }
 
 
