@@ -743,8 +743,43 @@ _interrupted = False
 _stop_event: Any = None
 
 
-def _worker_init(level: int, stop: Any) -> None:
-    """Start of a worker process: logging like the parent's; Ctrl-C handling.
+#: environment variables that cap the threads of numpy's BLAS and OpenMP in a worker
+THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def threads_per_worker(workers: int) -> int:
+    """The cores of this machine shared out among ``workers`` (at least one each).
+
+    Without a cap every worker's OpenCV and BLAS start as many threads as there are cores,
+    and the workers oversubscribe the machine.
+    """
+    return max(1, (os.cpu_count() or 1) // max(1, workers))
+
+
+@contextlib.contextmanager
+def _thread_env(threads: int) -> Iterator[None]:
+    """Workers started inside this block inherit :data:`THREAD_ENV` set to ``threads``."""
+    old = {k: os.environ.get(k) for k in THREAD_ENV}
+    os.environ.update({k: str(threads) for k in THREAD_ENV})
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def _cap_threads(threads: int) -> None:
+    import cv2
+
+    cv2.setNumThreads(int(threads))
+
+
+def _worker_init(level: int, stop: Any, threads: int = 0) -> None:
+    """Start of a worker process: logging like the parent's; Ctrl-C handling; ``threads``
+    (if > 0) caps OpenCV's threads.
 
     Ctrl-C (to the worker, or ``stop`` set by the parent) makes the running job stop at its
     next frame, remove its files and raise KeyboardInterrupt, and the worker refuse jobs
@@ -754,6 +789,8 @@ def _worker_init(level: int, stop: Any) -> None:
     parent's ``stop`` covers that moment.
     """
     global _stop_event
+    if threads > 0:
+        _cap_threads(threads)
     logging.basicConfig(level=level, format="%(levelname)s: %(message)s", stream=sys.stderr)
     logging.getLogger("trackcli").setLevel(level)
     _stop_event = stop
@@ -825,12 +862,14 @@ def _run_processes(jobs: list[Job], outdir: Path, workers: int) -> Iterator[JobR
     level = logging.getLogger("trackcli").getEffectiveLevel()
     pool = None
     finished: set[str] = set()
+    threads = threads_per_worker(workers)
     try:
-        _start_fork_server(context)
-        stop = context.Event()
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_init,
-                                   initargs=(level, stop))
-        futures = {pool.submit(_worker_job, job, str(outdir)): job for job in jobs}
+        with _thread_env(threads):
+            _start_fork_server(context)
+            stop = context.Event()
+            pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_init,
+                                       initargs=(level, stop, threads))
+            futures = {pool.submit(_worker_job, job, str(outdir)): job for job in jobs}
         for fut in as_completed(futures):
             job = futures[fut]
             try:
@@ -863,6 +902,12 @@ def require_dask() -> None:
         raise ConfigError("running on a Dask scheduler needs dask.distributed: pip install 'trackcli[dask]'")
 
 
+def _dask_job(job: Job, outdir: str, threads: int) -> JobResult:
+    """One job on a Dask worker, OpenCV capped to the worker's share of the cores."""
+    _cap_threads(threads)
+    return run_job(job, outdir)
+
+
 def _run_dask(jobs: list[Job], outdir: Path, scheduler: Any) -> Iterator[JobResult]:
     require_dask()
     from distributed import Client, as_completed
@@ -878,8 +923,14 @@ def _run_dask(jobs: list[Job], outdir: Path, scheduler: Any) -> Iterator[JobResu
     futures = []
     try:
         tag = uuid.uuid4().hex[:8]
+        try:
+            n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+        except Exception:
+            n_workers = 1
+        threads = threads_per_worker(n_workers)
         for job in jobs:
-            futures.append(client.submit(run_job, job, str(outdir), key=f"trackcli-{job.name}-{tag}", pure=False))
+            futures.append(client.submit(_dask_job, job, str(outdir), threads, key=f"trackcli-{job.name}-{tag}",
+                                         pure=False))
         by_key = {f.key: j for f, j in zip(futures, jobs)}
         for fut in as_completed(futures):
             job = by_key[fut.key]
