@@ -60,3 +60,14 @@ def test_the_tracks_of_the_sample_clips_are_as_pinned(name, tmp_path, monkeypatc
     for i, (r_new, r_old) in enumerate(zip(new, old)):
         bad = [(h, a, b) for h, a, b in zip(head_old, r_new, r_old) if not _same(a, b)]
         assert not bad, f"{name} row {i}: first differences {bad[:4]}"
+
+
+@pytest.mark.parametrize("threads", ["1", "2"])
+def test_the_number_of_threads_does_not_change_the_track(threads, tmp_path, monkeypatch):
+    """Scoring the samples in one thread or two gives the pinned CSV, to the digit."""
+    monkeypatch.chdir(ROOT)
+    name = "test.condensation.csv"
+    res = CliRunner().invoke(cli, ["-q", "track", *RUNS[name], "--threads", threads, "-o", str(tmp_path),
+                                   "--no-rrd"])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / name).read_text() == (PINNED / name).read_text()

@@ -350,6 +350,9 @@ def _video_overrides(fps, start, end, step) -> dict:
               help="CONDENSATION (particle filter, robust to clutter), the Kalman contour tracker, or mht "
                    "(a few Gaussian modes refined by Gauss-Newton steps; settings in mht:).")
 @click.option("--particles", type=click.IntRange(min=1), help="CONDENSATION sample-set size N (condensation.particles).")
+@click.option("--threads", type=click.IntRange(min=0, max=256),
+              help="Threads that score CONDENSATION's samples (condensation.threads; 0 = every core from 2000 "
+                   "samples up, one below). The results do not depend on it.")
 @click.option("--seed", type=click.IntRange(min=0), help="Random seed (same seed, same numbers).")
 @click.option("-o", "--outdir", type=click.Path(file_okay=False), default="trackcli-out", show_default=True,
               help="Folder for the outputs.")
@@ -361,7 +364,7 @@ def _video_overrides(fps, start, end, step) -> dict:
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON summary line per clip on stdout.")
 @with_video_options
 @click.pass_context
-def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, outdir, smooth, no_rrd, as_json, fps,
+def track_cmd(ctx, clips, config, model, template, tracker, particles, threads, seed, outdir, smooth, no_rrd, as_json, fps,
               start, end, step):
     """Follow the object through each CLIP (video file or image folder).
 
@@ -397,7 +400,7 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, seed, out
 
     if not model and not template:
         raise click.UsageError("give --model, --template, or both")
-    overrides = {"condensation.particles": particles, "seed": seed, **_video_overrides(fps, start, end, step)}
+    overrides = {"condensation.particles": particles, "condensation.threads": threads, "seed": seed, **_video_overrides(fps, start, end, step)}
     settings = _settings(config, overrides)
     explicit = _explicit_keys(config, overrides) if model else None
     given = [f"{k}={v}" for k, v in overrides.items() if v is not None]

@@ -134,6 +134,7 @@ class CondensationTracker(Tracker):
         self.centre = space.origin + self.X0[:2]
         self.lost_run = 0  # frames lost in a row
         self.k = 0
+        self.threads = c.threads  # 0: automatic (see trackcli.trackers.condensation.weigh)
 
     def _start(self, frame: FrameData) -> None:
         c, space = self.settings.condensation, self.space
@@ -177,7 +178,7 @@ class CondensationTracker(Tracker):
         else:
             particles, info = cond.step(self.particles, self.dynamics, loglik, self.rng, n_out=self.schedule(self.k),
                                         scheme=c.resampling, ess_threshold=c.ess_threshold,
-                                        propose=self._proposal(ev, frame))
+                                        propose=self._proposal(ev, frame), threads=self.threads)
             ess = info.ess
             ll = info.loglik
             ancestry = cond.ParticleSet(info.parent_shapes, particles.cur, particles.log_w)
