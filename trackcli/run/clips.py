@@ -182,11 +182,19 @@ class _Recorder:
         self._rec, self._log_frame, self._depth = rec, log_frame, depth
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="trackcli-record")
         self._pending: collections.deque = collections.deque()
+        self._count = 0
         self.seconds = 0.0
+
+    #: frames between two flushes of the recording to its file, which keep Rerun's buffers
+    #: from growing with the clip
+    FLUSH_EVERY = 200
 
     def _record(self, image: Any, r: Any) -> None:
         t0 = time.perf_counter()
         _record_frame(self._rec, self._log_frame, image, r)
+        self._count += 1
+        if self._count % self.FLUSH_EVERY == 0:
+            self._rec.stream.flush()
         self.seconds += time.perf_counter() - t0
 
     def submit(self, image: Any, r: Any) -> None:
