@@ -13,14 +13,10 @@ All files are written atomically: an interrupted run leaves no half-written file
 
 from __future__ import annotations
 
-import collections
 import contextlib
 import logging
 import os
-import queue
-import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Callable, Collection, ContextManager, Iterable, Iterator
@@ -34,6 +30,7 @@ from trackcli.errors import ConfigError, DataError, TemplateError
 from trackcli.io.outputs import output_dir, refuse_overwriting_inputs, write_text
 from trackcli.shapes.shape_space import ShapeSpace
 from trackcli.io.tracks import OutlineColumns, TrackWriter
+from trackcli.run.background import BackgroundRecorder, DecodeAhead
 from trackcli.trackers import tracker_class
 
 log = logging.getLogger(__name__)
@@ -100,123 +97,6 @@ def clip_json(name: str, clip: Any, tracker: str, summary: RunSummary | None = N
     return d
 
 
-class _TimedFrames:
-    """Decode frames ahead in a background thread; keep the current frame and the timings.
-
-    Decoding (OpenCV releases the GIL while it decodes) overlaps with tracking; at most
-    ``depth`` decoded frames wait in the queue, so memory does not grow with the clip.
-    ``decode_seconds`` is the decoding time, ``wait_seconds`` the time the consumer spent
-    waiting for a frame.  :meth:`close` stops the thread (call it before the video closes).
-    """
-
-    _END = object()
-
-    def __init__(self, frames: Iterable[Any], depth: int = 4):
-        self._it = iter(frames)
-        self.decode_seconds = 0.0
-        self.wait_seconds = 0.0
-        self.current: Any = None
-        self._queue: queue.Queue = queue.Queue(maxsize=depth)
-        self._stop = threading.Event()
-        self._done = False
-        self._thread = threading.Thread(target=self._decode, name="trackcli-decode", daemon=True)
-        self._thread.start()
-
-    def _put(self, item: Any) -> bool:
-        while not self._stop.is_set():
-            try:
-                self._queue.put(item, timeout=0.1)
-                return True
-            except queue.Full:
-                continue
-        return False
-
-    def _decode(self) -> None:
-        try:
-            while not self._stop.is_set():
-                t0 = time.perf_counter()
-                try:
-                    frame = next(self._it)
-                except StopIteration:
-                    break
-                finally:
-                    self.decode_seconds += time.perf_counter() - t0
-                if not self._put(frame):
-                    return
-            self._put(self._END)
-        except BaseException as exc:  # handed to the consumer, raised there
-            self._put(exc)
-
-    def __iter__(self) -> Iterator[Any]:
-        return self
-
-    def __next__(self) -> Any:
-        if self._done:
-            raise StopIteration
-        t0 = time.perf_counter()
-        item = self._queue.get()
-        self.wait_seconds += time.perf_counter() - t0
-        if item is self._END:
-            self._done = True
-            raise StopIteration
-        if isinstance(item, BaseException):
-            self._done = True
-            raise item
-        self.current = item
-        return item
-
-    def close(self) -> None:
-        self._stop.set()
-        self._thread.join()
-
-
-class _Recorder:
-    """Log each frame's result to the recording in a background thread, in order.
-
-    JPEG encoding and Rerun's logging overlap with the tracking of the next frames; at most
-    ``depth`` frames wait, and an error in the recorder is raised in the caller at the next
-    frame or at :meth:`finish`.
-    """
-
-    def __init__(self, rec: Any, log_frame: Any, depth: int = 8):
-        self._rec, self._log_frame, self._depth = rec, log_frame, depth
-        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="trackcli-record")
-        self._pending: collections.deque = collections.deque()
-        self._count = 0
-        self.seconds = 0.0
-
-    #: frames between two flushes of the recording to its file, which keep Rerun's buffers
-    #: from growing with the clip
-    FLUSH_EVERY = 200
-
-    def _record(self, image: Any, r: Any) -> None:
-        t0 = time.perf_counter()
-        _record_frame(self._rec, self._log_frame, image, r)
-        self._count += 1
-        if self._count % self.FLUSH_EVERY == 0:
-            self._rec.stream.flush()
-        self.seconds += time.perf_counter() - t0
-
-    def submit(self, image: Any, r: Any) -> None:
-        self._pending.append(self._pool.submit(self._record, image, r))
-        while self._pending and (self._pending[0].done() or len(self._pending) > self._depth):
-            self._pending.popleft().result()
-
-    def finish(self) -> None:
-        """Wait for every frame; raise the first error."""
-        try:
-            while self._pending:
-                self._pending.popleft().result()
-        finally:
-            self.close()
-
-    def close(self) -> None:
-        for f in self._pending:
-            f.cancel()
-        self._pool.shutdown(wait=True)
-        self._pending.clear()
-
-
 def run_clip(
     video: Any,
     make_tracker: Callable[[Iterable[Any]], Iterator[Any]],
@@ -269,9 +149,9 @@ def run_clip(
     if outline_points == 1:
         raise ConfigError("output.outline_points: expected 0 (no outline) or at least 2 points, got 1")
     outline = OutlineColumns(space, int(outline_points)) if outline_points else None
-    frames = _TimedFrames(video)
+    frames = DecodeAhead(video)
     results = make_tracker(frames)
-    recorder: _Recorder | None = None
+    recorder: BackgroundRecorder | None = None
     t_start = time.perf_counter()
     n = lost = 0
     found_sum = 0.0
@@ -313,7 +193,7 @@ def run_clip(
                                              whole_clip=getattr(video, "whole_clip", False))
                 log.info("recording frames as %s: %s", storage.upper() if storage == "jpeg" else "a video asset", why)
                 log_frame = rec.frame_logger(path if storage == "asset" else None, quality=jpeg_quality)
-                recorder = _Recorder(rec, log_frame)
+                recorder = BackgroundRecorder(rec, log_frame, _record_frame)
             step_seconds = 0.0
             while True:
                 t0 = time.perf_counter()

@@ -18,6 +18,10 @@ callable ``loglik(X) -> log p(Z | X)`` for an ``(n, Nx)`` array of shapes.
 
 A dynamics object is anything with numpy attributes ``A1``, ``A2`` of shape (Nx, Nx), ``B0``
 of shape (Nx, Nw) and ``mean`` of shape (Nx,).
+
+One module (over 600 lines): the sample set, the three selection schemes, prediction,
+weighting, the step that composes them and the initial sets share one representation of a
+weighted set (log-weights) and its checks.
 """
 
 from __future__ import annotations
