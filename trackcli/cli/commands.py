@@ -156,6 +156,11 @@ def config_check(file: str) -> None:
 @click.option("--ellipse", help="Ellipse 'cx,cy,a,b[,angle]': centre, semi-axes (px), angle (degrees).")
 @click.option("--box", help="Box 'x,y,w,h' around the object: segmented automatically (GrabCut).")
 @click.option("--mask", type=click.Path(), help="Binary mask image (non-zero = object), same size as the frame.")
+@click.option("--parts", "part_specs", multiple=True, metavar="NAME:x,y,w,h",
+              help="A part of a structure template for --tracker coupled (repeatable, at least two), e.g. "
+                   "--parts left_eye:341,214,22,14: its box and image patch are stored with the outline. With "
+                   "--parts alone the outline is the ellipse around the parts (semi-axes 0.8 and 0.9 of their "
+                   "bounding box).")
 @click.option("--n-ctrl", type=click.IntRange(min=3, max=200), default=12, show_default=True,
               help="Number of spline control points.")
 @click.option("--degree", type=click.IntRange(min=1, max=5), default=2, show_default=True,
@@ -168,28 +173,39 @@ def config_check(file: str) -> None:
 @click.option("--rrd", type=click.Path(dir_okay=False), help="Also write a Rerun recording of the template.")
 @click.option("--n-normals", type=click.IntRange(min=3, max=1000), default=24, show_default=True,
               help="Measurement normals shown in the preview.")
-def draw_cmd(clip, frame_index, points, ellipse, box, mask, n_ctrl, degree, open_curve, fps, output, preview, rrd, n_normals):
+def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, degree, open_curve, fps, output, preview, rrd, n_normals):
     """Make a template: a B-spline outline of the object in one frame of CLIP.
 
     Give exactly one of --points, --ellipse, --box or --mask.  Writes the template (YAML),
     a PNG preview (curve in green, control polygon in blue, measurement normals in yellow)
-    and, with --rrd, a recording.
+    and, with --rrd, a recording.  With --parts the template is also a structure template
+    for --tracker coupled: each part's box and image patch are kept.
 
     \b
     Examples:
       trackcli draw sample_data/train.mp4 --box 200,90,90,150 -o head.yaml
       trackcli draw clip.mp4 --frame 10 --ellipse 320,240,40,55 --n-ctrl 10 -o head.yaml
+      trackcli draw face.mp4 --parts left_eye:341,214,22,14 --parts right_eye:376,214,22,14 \\
+          --parts mouth:352,262,34,16 -o face.yaml
     """
     from pathlib import Path
 
     import cv2
+    import numpy as np
 
-    from trackcli.shapes import draw
+    from trackcli.shapes import draw, structure
     from trackcli.io.outputs import atomic_path, output_dir, refuse_overwriting_inputs
     from trackcli.shapes.template import save_template
     from trackcli.io.video import open_video
 
     chosen = [n for n, v in (("--points", points), ("--ellipse", ellipse), ("--box", box), ("--mask", mask)) if v]
+    specs = [structure.parse_part(p) for p in part_specs]
+    if specs and not chosen:
+        xy = np.array([[x, y, x + w, y + h] for _, (x, y, w, h) in specs])
+        lo, hi = xy[:, :2].min(axis=0), xy[:, 2:].max(axis=0)
+        c, half = (lo + hi) / 2.0, (hi - lo) / 2.0
+        ellipse = f"{c[0]:.2f},{c[1]:.2f},{1.6 * half[0]:.2f},{1.8 * half[1]:.2f}"
+        chosen = ["--ellipse"]
     if len(chosen) != 1:
         raise click.UsageError("give exactly one of --points, --ellipse, --box, --mask"
                                + (f" (got {', '.join(chosen)})" if chosen else ""))
@@ -221,7 +237,14 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, n_ctrl, degree, open
         source = f"mask {mask}"
     template = draw.fit_template(outline, n_ctrl, degree=degree, closed=not open_curve, clip=str(clip),
                                  frame=frame_index, frame_size=size, source=source)
+    if specs:
+        import dataclasses
+
+        parts = structure.cut_parts(cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY), specs)
+        template = dataclasses.replace(template, extra={**template.extra, "parts": structure.parts_to_yaml(parts)})
     vis = draw.render_preview(frame.image, template, n_normals=n_normals)
+    for name, (x, y, w, h) in specs:
+        cv2.rectangle(vis, (int(round(x)), int(round(y))), (int(round(x + w)), int(round(y + h))), (0, 200, 255), 1)
     ok, buf = cv2.imencode(".png", vis)
     written: list[Path] = []
     with output_dir(out.parent), output_dir(png.parent), output_dir(Path(rrd).parent if rrd else out.parent):

@@ -227,6 +227,17 @@ class OutputSettings:
 
 
 @dataclass(frozen=True)
+class CoupledSettings:
+    particles: int = _f(400, "int", "samples of the structure's state", lo=10, hi=100_000)
+    length_spread: float = _f(0.1, "float", "RMS of a ray's length about the drawn one, as a fraction of it (the internal energy)", lo=0, lo_open=True, hi=2)
+    angle_spread: float = _f(0.15, "float", "RMS of a ray's angle about the drawn one, radians (the internal energy)", lo=0, lo_open=True, hi=3.2)
+    centre_noise: float = _f(0.05, "float", "RMS change of the centre's velocity per frame, in object sizes", lo=0, lo_open=True, hi=2)
+    ray_noise: float = _f(0.02, "float", "RMS change per frame of a ray's length (fraction) and angle (radians)", lo=0, hi=1)
+    search: float = _f(0.5, "float", "half-width of each part's search window around its predicted position, in object sizes", lo=0.05, hi=5)
+    temperature: float = _f(0.05, "float", "scale of the external energy: a sample's log-weight gains NCC / temperature per part", lo=0.001, hi=10)
+
+
+@dataclass(frozen=True)
 class Settings:
     format: int = _f(FORMAT, "int", "configuration format version", lo=FORMAT, hi=FORMAT)
     shape_space: str = _f("similarity", "str", "shape-space built on the template", choices=("translation", "similarity", "affine"))
@@ -237,6 +248,7 @@ class Settings:
     dynamics: DynamicsSettings = _section(DynamicsSettings, "hand-set AR(2) dynamics")
     condensation: CondensationSettings = _section(CondensationSettings, "CONDENSATION")
     mht: MHTSettings = _section(MHTSettings, "mode-based multiple hypotheses (--tracker mht; observation model and gates from condensation and kalman)")
+    coupled: CoupledSettings = _section(CoupledSettings, "coupled structures (--tracker coupled; 003): a centre and rays to parts matched by normalised cross-correlation")
     placement: PlacementSettings = _section(PlacementSettings, "a learned model tracking a clip (track --model)")
     learning: LearningSettings = _section(LearningSettings, "learning dynamics")
     output: OutputSettings = _section(OutputSettings, "outputs")

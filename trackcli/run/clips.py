@@ -563,7 +563,14 @@ def track_clip(
         setup = tracking_setup(model, template, settings, video, starts_at_template=at_template)
         space, dynamics, X0 = setup.space, setup.dynamics, setup.X0
         rng = np.random.default_rng(settings.seed)
-        the_tracker = tracker_cls(space, dynamics, settings, rng, X0=X0)
+        extra: dict[str, Any] = {}
+        if getattr(tracker_cls, "needs_template", False):  # e.g. a structure template's parts
+            if not template:
+                raise ConfigError(f"--tracker {tracker} needs --template (a structure template)")
+            from trackcli.shapes.template import load_template
+
+            extra = {"template": load_template(template), "template_path": str(template)}
+        the_tracker = tracker_cls(space, dynamics, settings, rng, X0=X0, **extra)
 
         def make(frames: Iterable[Any]) -> Iterator[Any]:
             return run_tracker(the_tracker, frames)

@@ -9,6 +9,7 @@
 - :mod:`.base` — the tracker interface (:class:`.base.Tracker`: one frame in, one
   :class:`.base.FrameResult` out) and the one frame loop, :func:`.base.run_tracker`.
 - :mod:`.kalman_tracker` — the Kalman contour tracker (AC ch. 10) on that interface.
+- :mod:`.coupled` — coupled structures (003): a centre and rays to parts matched by NCC.
 - :mod:`.condensation_tracker` — CONDENSATION over curve shape (AC ch. 12) on that interface:
   initial sets, jumps in the motion prior, re-acquisition after loss.
 - :mod:`.modes` and :mod:`.mht` — mode-based multiple hypotheses (Cham & Rehg 1999): a few
@@ -28,6 +29,7 @@ TRACKERS: dict[str, str] = {
     "condensation": "trackcli.trackers.condensation_tracker:CondensationTracker",
     "kalman": "trackcli.trackers.kalman_tracker:KalmanTracker",
     "mht": "trackcli.trackers.mht:MHTTracker",
+    "coupled": "trackcli.trackers.coupled:CoupledTracker",
 }
 
 
