@@ -13,8 +13,10 @@ log-weight is minus the sum of two energies (003 §2):
 Each frame: select by weight, predict (the centre with its velocity plus noise, and jumps
 as in CONDENSATION's motion prior; each ray with a small random walk), weigh (NCC maps of
 every part over a window around its predicted position, read at every sample's part
-position).  The estimate is the weighted mean; its confidence is the NCC of the parts at
-the estimate, mapped to [0, 1].  The template's outline follows the centre (translation)
+position).  The estimate is the weighted mean; its confidence is the mean NCC of the
+parts at the estimate, mapped to [0, 1] (:data:`NCC_LOST`, :data:`NCC_SURE`).  After
+``condensation.reacquire_after`` lost frames a share of the samples is drawn about the
+peaks of the whole frame's part votes, with importance weights (:meth:`CoupledTracker._reacquire`).  The template's outline follows the centre (translation)
 and the mean change of the rays (scale and rotation), so the track CSV, ``eval`` and
 ``render`` work as for the other trackers; the parts' positions and scores are extra
 columns.
@@ -34,8 +36,9 @@ from trackcli.trackers.base import FrameData, FrameResult, Tracker
 
 PART_RGB = (255, 200, 0)
 RAY_RGB = (255, 255, 255)
-#: NCC at which the confidence is 0 and 1
-NCC_LOST, NCC_SURE = 0.3, 0.8
+#: the mean NCC of the parts at the estimate at which the confidence is 0 and 1 (0.5 at 0.65:
+#: small patches match background texture at 0.5-0.6 on their own)
+NCC_LOST, NCC_SURE = 0.45, 0.85
 
 
 class CoupledTracker(Tracker):
@@ -71,6 +74,7 @@ class CoupledTracker(Tracker):
         self.prev_centre = self.state[:, :2].copy()
         self.log_w = np.full(n, -np.log(n))
         self.first = True
+        self.lost_run = 0
         self.extra_columns = [f"{p.name}_{k}" for p in self.parts for k in ("x", "y", "ncc")]
 
     # -- the model ---------------------------------------------------------------------------
@@ -101,8 +105,10 @@ class CoupledTracker(Tracker):
         new[:, 3::2] += s.ray_noise * rng.standard_normal((n, J))
         return new, state[:, :2].copy()
 
-    def _ncc_maps(self, grey: np.ndarray, predicted: np.ndarray) -> list[tuple[np.ndarray, int, int]]:
-        """Per part: its NCC map over a window about its predicted position, and the map's origin."""
+    def _ncc_maps(self, grey: np.ndarray, predicted: np.ndarray,
+                  spread: np.ndarray | None = None) -> list[tuple[np.ndarray, int, int]]:
+        """Per part: its NCC map over a window about its predicted position (or, with
+        ``spread`` (N, J, 2), about the box of every sample's part), and the map's origin."""
         import cv2
 
         h_img, w_img = grey.shape
@@ -110,11 +116,12 @@ class CoupledTracker(Tracker):
         maps = []
         for j, patch in enumerate(self.patches):
             ph, pw = patch.shape
-            cx, cy = predicted[j]
-            x0 = int(max(0, np.floor(cx - pw / 2 - R)))
-            y0 = int(max(0, np.floor(cy - ph / 2 - R)))
-            x1 = int(min(w_img, np.ceil(cx + pw / 2 + R)))
-            y1 = int(min(h_img, np.ceil(cy + ph / 2 + R)))
+            lo, hi = (predicted[j], predicted[j]) if spread is None else (spread[:, j].min(axis=0),
+                                                                          spread[:, j].max(axis=0))
+            x0 = int(max(0, np.floor(lo[0] - pw / 2 - R)))
+            y0 = int(max(0, np.floor(lo[1] - ph / 2 - R)))
+            x1 = int(min(w_img, np.ceil(hi[0] + pw / 2 + R)))
+            y1 = int(min(h_img, np.ceil(hi[1] + ph / 2 + R)))
             if x1 - x0 < pw or y1 - y0 < ph:
                 maps.append((np.full((1, 1), -1.0, np.float32), x0, y0))
                 continue
@@ -122,6 +129,74 @@ class CoupledTracker(Tracker):
             # a map value at (u, v) scores the patch centred at (x0 + u + pw/2, y0 + v + ph/2)
             maps.append((np.nan_to_num(m, nan=-1.0), x0 + (pw - 1) / 2.0, y0 + (ph - 1) / 2.0))
         return maps
+
+    def _votes(self, grey: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """Where the structure's centre may be in the whole frame: the parts' NCC maps shifted
+        by their drawn rays and averaged (every part votes for the centre).
+
+        Returns ``(centres (K, 2), votes (K,))`` of up to five peaks, or None.
+        """
+        import cv2
+
+        h_img, w_img = grey.shape
+        total = np.zeros((h_img, w_img), np.float32)
+        for part, patch in zip(self.parts, self.patches):
+            ph, pw = patch.shape
+            if ph > h_img or pw > w_img:
+                return None
+            m = np.nan_to_num(cv2.matchTemplate(grey, patch, cv2.TM_CCOEFF_NORMED), nan=-1.0)
+            # the map's (u, v) scores the part centred at (u + (pw-1)/2, v + (ph-1)/2); it votes for
+            # the centre at that point less the part's drawn ray
+            off = part.centre - self.c0
+            shift = np.float32([[1, 0, (pw - 1) / 2.0 - off[0]], [0, 1, (ph - 1) / 2.0 - off[1]]])
+            total += cv2.warpAffine(m, shift, (w_img, h_img), flags=cv2.INTER_NEAREST,
+                                    borderMode=cv2.BORDER_CONSTANT, borderValue=-1.0)
+        total /= len(self.parts)
+        r = max(3, int(0.25 * self.size))
+        peaks, votes = [], []
+        for _ in range(5):
+            _, v, _, (x, y) = cv2.minMaxLoc(total)
+            if v < NCC_LOST:
+                break
+            peaks.append((x, y))
+            votes.append(v)
+            cv2.circle(total, (x, y), r, -2.0, -1)
+        if not peaks:
+            return None
+        return np.asarray(peaks, float), np.asarray(votes, float)
+
+    def _reacquire(self, grey: np.ndarray, state: np.ndarray, prev: np.ndarray) -> np.ndarray:
+        """Move a share of the samples to the whole frame's vote peaks (importance sampling).
+
+        While lost, the motion prior is a mixture: the object may also reappear anywhere
+        (uniform over the frame).  That share (``condensation.reacquire_fraction``) is drawn
+        from a Gaussian mixture about the vote peaks instead, and each such sample carries
+        the log of the uniform density over the proposal density; the others carry 0.
+        Returns the log-corrections.
+        """
+        c = self.settings.condensation
+        corr = np.zeros(state.shape[0])
+        found = self._votes(grey)
+        if found is None:
+            return corr
+        peaks, votes = found
+        pi = votes / votes.sum()
+        take = self.rng.random(state.shape[0]) < c.reacquire_fraction
+        k = int(take.sum())
+        if k == 0:
+            return corr
+        sd = 0.05 * self.size
+        which = self.rng.choice(len(peaks), size=k, p=pi)
+        centres = peaks[which] + sd * self.rng.standard_normal((k, 2))
+        state[take, :2] = centres
+        state[take, 2::2] = self.l0
+        state[take, 3::2] = self.a0
+        prev[take] = centres  # at rest
+        d2 = ((centres[:, None, :] - peaks[None]) ** 2).sum(axis=-1)
+        q = (pi[None] * np.exp(-0.5 * d2 / sd**2) / (2 * np.pi * sd**2)).sum(axis=1)
+        h_img, w_img = grey.shape
+        corr[take] = -np.log(float(w_img * h_img)) - np.log(np.maximum(q, 1e-300))
+        return corr
 
     @staticmethod
     def _read(ncc: tuple[np.ndarray, float, float], pts: np.ndarray) -> np.ndarray:
@@ -140,16 +215,21 @@ class CoupledTracker(Tracker):
 
         s = self.settings.coupled
         grey = cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY).astype(np.float32)
+        correction = np.zeros(self.state.shape[0])
         if self.first:
             state, prev = self.state, self.prev_centre
             self.first = False
         else:
             parents = cond.resample(np.exp(self.log_w), self.state.shape[0], self.rng, "systematic")
             state, prev = self._predict(self.state[parents], self.prev_centre[parents])
+            c = self.settings.condensation
+            if c.reacquire and self.lost_run >= c.reacquire_after:
+                correction = self._reacquire(grey, state, prev)
         pos = self.part_positions(state)
-        maps = self._ncc_maps(grey, pos.mean(axis=0))
+        # samples in several places after re-acquisition: one window over all of them
+        maps = self._ncc_maps(grey, pos.mean(axis=0), spread=pos if correction.any() else None)
         ncc = np.stack([self._read(maps[j], pos[:, j]) for j in range(len(self.parts))], axis=1)
-        log_w = ncc.sum(axis=1) / s.temperature - self.internal_energy(state)
+        log_w = correction + ncc.sum(axis=1) / s.temperature - self.internal_energy(state)
         log_w -= log_w.max()
         w = np.exp(log_w)
         w /= w.sum()
@@ -170,6 +250,8 @@ class CoupledTracker(Tracker):
         X_std = np.zeros(self.space.Nx)
         X_std[:2] = spread
         conf = float(np.clip((np.mean(est_ncc) - NCC_LOST) / (NCC_SURE - NCC_LOST), 0.0, 1.0))
+        lost = conf < self.settings.measurement.lost_below
+        self.lost_run = self.lost_run + 1 if lost else 0
         extra = {}
         for p, xy, q in zip(self.parts, est_parts, est_ncc):
             extra.update({f"{p.name}_x": float(xy[0]), f"{p.name}_y": float(xy[1]), f"{p.name}_ncc": float(q)})
@@ -179,6 +261,6 @@ class CoupledTracker(Tracker):
         return FrameResult(
             index=frame.index, time=frame.time, X=X, X_std=X_std, contour=contour, centroid=centroid, bbox=bbox,
             n_found=int((est_ncc > NCC_LOST).sum()), n_normals=len(self.parts), gate_rms=float(s.search * self.size),
-            ess=float(1.0 / np.sum(w**2)), loglik=float(w @ ncc.sum(axis=1)), lost=conf < self.settings.measurement.lost_below,
+            ess=float(1.0 / np.sum(w**2)), loglik=float(w @ ncc.sum(axis=1)), lost=lost,
             confidence=conf, extra=extra, display={"overlays": overlays},
         )
