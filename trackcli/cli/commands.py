@@ -370,8 +370,10 @@ def _video_overrides(fps, start, end, step) -> dict:
               help="Template drawn on this clip: the initial placement (with --model) or, alone, "
                    "the shape to track with hand-set dynamics.")
 @click.option("--tracker", type=click.Choice(list(TRACKERS)), default="condensation", show_default=True,
-              help="CONDENSATION (particle filter, robust to clutter), the Kalman contour tracker, or mht "
-                   "(a few Gaussian modes refined by Gauss-Newton steps; settings in mht:).")
+              help="CONDENSATION (particle filter, robust to clutter), the Kalman contour tracker, mht "
+                   "(a few Gaussian modes refined by Gauss-Newton steps; settings in mht:), or coupled (a centre "
+                   "and rays to parts matched by NCC; needs a structure template from draw --parts; settings in "
+                   "coupled:).")
 @click.option("--particles", type=click.IntRange(min=1), help="CONDENSATION sample-set size N (condensation.particles).")
 @click.option("--threads", type=click.IntRange(min=0, max=256),
               help="Threads that score CONDENSATION's samples (condensation.threads; 0 = every core from 2000 "
