@@ -55,7 +55,7 @@ def test_defaults_load_without_a_file():
     # translation, a deformation that returns to the template
     assert s.dynamics.units == "object"
     assert s.dynamics.translation.rho is None and s.dynamics.translation.gamma0 == 5.0
-    assert s.dynamics.deformation.rho == 0.05  # the deformation section has its own defaults
+    assert s.dynamics.deformation.rho == 0.1  # the deformation section has its own defaults
     assert s.condensation.likelihood == "discriminant"
     assert s.video.fps is None and s.video.end is None
 

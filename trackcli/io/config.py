@@ -146,7 +146,7 @@ def _translation_default() -> SubspaceDynamics:
 
 
 def _deformation_default() -> SubspaceDynamics:
-    return SubspaceDynamics(f=0.0, beta=2.0, rho=0.05)
+    return SubspaceDynamics(f=0.0, beta=2.0, rho=0.1)
 
 
 @dataclass(frozen=True)
