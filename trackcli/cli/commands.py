@@ -437,7 +437,9 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, threads, 
         raise click.UsageError("two clips have the same name; run them into different --outdir folders")
     # files shared by every clip are checked once, before any clip runs
     if model:
-        load_model(model)
+        from trackcli.dynamics.mixed import is_mixed_file, load_mixed
+
+        load_mixed(model) if is_mixed_file(model) else load_model(model)
     if template:
         load_template(template)
     failures = 0

@@ -26,6 +26,7 @@ import numpy as np
 from trackcli import __version__
 from trackcli.io.config import Settings, dump_yaml, to_dict
 from trackcli.dynamics.ar2 import AR2
+from trackcli.dynamics.mixed import is_mixed_file
 from trackcli.errors import ConfigError, DataError, TemplateError
 from trackcli.io.outputs import output_dir, refuse_overwriting_inputs, write_text
 from trackcli.shapes.shape_space import ShapeSpace
@@ -413,6 +414,8 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
     if not model and not template:
         raise ConfigError("nothing to track: give a model, a template, or both")
     tau = 1.0 / video.fps
+    if model and is_mixed_file(model):
+        return mixed_setup(model, template, settings, video, starts_at_template=starts_at_template)
     if model:
         m = load_model(model)
         noise = {"translation_noise": settings.placement.translation_noise,
@@ -436,6 +439,51 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
     space = template_space(tmpl, template, settings.shape_space)
     return TrackingSetup(space, handset_dynamics(space, settings.dynamics, tau), np.zeros(space.Nx),
                          f"template {template} (hand-set dynamics)")
+
+
+def mixed_setup(model: str | os.PathLike[str], template: str | os.PathLike[str] | None, settings: Settings,
+                video: Any, *, starts_at_template: bool = True) -> TrackingSetup:
+    """A mixed-state model (:mod:`trackcli.dynamics.mixed`) on ``video``.
+
+    Its labels' dynamics are built on the template's shape-space: hand-set labels as the
+    ``dynamics`` settings are; learned labels (a model from ``learn --labels``, which holds
+    its own template and shape-space) placed by the template as a single learned model is.
+    Without ``template`` a learned mixed model starts where its own template was drawn;
+    a hand-written one needs a template.
+    """
+    from trackcli.dynamics.mixed import build_dynamics, load_mixed
+    from trackcli.dynamics.model import place_dynamics, place_space
+    from trackcli.shapes.template import load_template
+
+    mm = load_mixed(model)
+    tau = 1.0 / video.fps
+    tmpl = None
+    if template:
+        tmpl = load_template(template)
+        check_template_frame(tmpl, video)
+        if starts_at_template:
+            warn_if_drawn_elsewhere(tmpl, template, video)
+    if mm.space is None:
+        if tmpl is None:
+            raise ConfigError(f"{model}: a hand-written mixed-state model has no template of its own; "
+                              "give --template")
+        space = template_space(tmpl, str(template), settings.shape_space)
+        X0 = np.zeros(space.Nx)
+        source = f"mixed-state model {model} ({', '.join(mm.names)}) on template {template}"
+        return TrackingSetup(space, build_dynamics(mm, space, tau, X0=X0), X0, source)
+    noise = {"translation_noise": settings.placement.translation_noise,
+             "deformation_noise": settings.placement.deformation_noise,
+             "coupling": settings.placement.coupling,
+             "max_spectral_radius": settings.learning.max_spectral_radius}
+    if tmpl is not None:
+        space, X0 = place_space(mm.space, tmpl)
+        placed = [None if lab.ar2 is None else place_dynamics(lab.ar2, space, X0, tau, **noise) for lab in mm.labels]
+        source = f"mixed-state model {model} ({', '.join(mm.names)}) placed by template {template}"
+    else:
+        space, X0 = mm.space, np.zeros(mm.space.Nx)
+        placed = [None if lab.ar2 is None else place_dynamics(lab.ar2, space, None, tau, **noise) for lab in mm.labels]
+        source = f"mixed-state model {model} ({', '.join(mm.names)})"
+    return TrackingSetup(space, build_dynamics(mm, space, tau, X0=X0, placed=placed), X0, source)
 
 
 def output_base(outdir: str | os.PathLike[str], name: str, tracker: str) -> Path:
@@ -543,7 +591,12 @@ def track_clip(
         raise ConfigError("--smooth: not available with --tracker mht (its estimate may jump from one mode to "
                           "another); smooth a kalman or condensation track")
     name = name or clip_name(clip)
-    if model and explicit is not None:
+    mixed = bool(model) and is_mixed_file(model)
+    if mixed and tracker != "condensation":
+        raise ConfigError(f"--model {model} is a mixed-state model: only --tracker condensation tracks with one")
+    if mixed and smooth:
+        raise ConfigError("--smooth: not available with a mixed-state model (the smoother needs one AR(2) model)")
+    if model and explicit is not None and not mixed:
         from trackcli.dynamics.model import load_model, settings_with_model
 
         settings, sources = settings_with_model(settings, load_model(model).settings, explicit, f"model {model}")

@@ -290,6 +290,8 @@ class StepInfo(NamedTuple):
     (for offline consumers that trace ancestry)."""
     loglik: np.ndarray | None = None
     """``log p(Z | X)`` of every new sample, as ``loglik`` returned it."""
+    parents: np.ndarray | None = None
+    """Index in the incoming set of each new sample's parent (``arange(N)`` without selection)."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -365,6 +367,8 @@ def step(
     propose: Callable[[np.ndarray, np.ndarray, np.random.Generator], tuple[np.ndarray, np.ndarray, np.ndarray]]
     | None = None,
     threads: int = 1,
+    motion: Callable[[np.ndarray, np.ndarray, np.random.Generator, np.ndarray],
+                     tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None,
 ) -> tuple[ParticleSet, StepInfo]:
     """One CONDENSATION time-step: select, predict, weight (AC Fig 12.6).
 
@@ -399,6 +403,13 @@ def step(
         weighted set a fair sample of the posterior (zeros for a mixture prior sampled as it is).
     threads : int
         Threads that score the samples (:func:`weigh`); the result does not depend on it.
+    motion : callable, optional
+        Replaces the AR(2) prediction: ``motion(prev, cur, rng, parents)`` with the selected
+        samples' ``X_{k-2}, X_{k-1}`` and their parents' indices in ``particles`` returns
+        ``(prev', X_k, log_correction)``, ``prev'`` being the ``X_{k-1}`` the new state carries
+        (its velocity is ``X_k - prev'``; usually ``cur``) and ``log_correction`` (n,) added to
+        the log-weights (``-inf``: a state the motion model cannot produce).  Used by mixed-state dynamics
+        (:mod:`trackcli.dynamics.mixed`), whose samples carry a label beside the shape.
 
     Returns
     -------
@@ -425,9 +436,14 @@ def step(
         prev, cur = particles.prev[parents], particles.cur[parents]
         base = np.zeros(n_out)
     else:
+        parents = np.arange(particles.n)
         prev, cur, base = particles.prev, particles.cur, log_w
 
-    new = predict(prev, cur, dynamics, rng)
+    if motion is None:
+        new = predict(prev, cur, dynamics, rng)
+    else:
+        cur, new, correction = motion(prev, cur, rng, parents)
+        base = base + correction
     parents_cur = cur
     if propose is not None:
         cur, new, correction = propose(cur, new, rng)
@@ -441,6 +457,7 @@ def step(
         ess_before=ess_before,
         parent_shapes=parents_cur,
         loglik=ll,
+        parents=parents,
     )
     return out, info
 
