@@ -492,12 +492,16 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, threads, 
               help="mle: maximum likelihood on the tracked shapes (AC Fig 11.6); em: expectation-maximisation "
                    "on the measurements behind them (each frame's aggregated normals, or with --from-tracks "
                    "each shape with its reported std), settings em.tolerance and em.max_iterations.")
+@click.option("--labels", "label_files", multiple=True, type=click.Path(dir_okay=False),
+              help="Labelled frame ranges (CSV or YAML of start,end,label; frames inclusive), one file per CLIP or "
+                   "--from-tracks track in order: writes a mixed-state model with one AR(2) per label and the "
+                   "transition matrix counted from the labels.")
 @click.option("--no-rrd", is_flag=True, help="Do not write recordings of the training tracks.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
 @with_video_options
 @click.pass_context
 def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tracks, tracks_fps, outdir, method,
-              no_rrd, as_json, fps, start, end, step):
+              label_files, no_rrd, as_json, fps, start, end, step):
     """Learn AR(2) dynamics from training CLIPS (AC Fig 11.1).
 
     Tracks each clip with the Kalman contour tracker (hand-set dynamics from the config in
@@ -508,9 +512,16 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
     sequence under the current model (iterations and log-likelihoods in the model's
     provenance).
 
+    With --labels (one file of labelled frame ranges per clip or track), the clips are
+    tracked as above and the model written is a mixed-state model (Blake et al. 1998 §8):
+    one AR(2) per label, learned by maximum likelihood from that label's frames pooled over
+    the clips, and the transition matrix counted from the label sequences.  Event labels
+    (a bounce) are not learned: write them into the file by hand (see the README).
+
     \b
-    Example:
+    Examples:
       trackcli learn --template head.yaml sample_data/train.mp4 -o head-model.yaml --cycles 2
+      trackcli learn --template hand.yaml --from-tracks hand.csv --labels hand-labels.csv -o hand.mixed.yaml
     """
     from pathlib import Path
 
@@ -532,6 +543,10 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
         refuse_overwriting_inputs({"-o/--output": out_model}, inputs)
         rate = tracks_fps or settings.video.fps or 25.0
         model = learn_from_tracks(from_tracks, tmpl, settings, 1.0 / rate, shape_space, method)
+        if label_files:
+            _learn_labelled(from_tracks, label_files, model, 1.0 / rate, settings, out_model, as_json,
+                            {"tracks": list(from_tracks)})
+            return
         save_model(out_model, model)
         _learn_report(model, [], out_model, as_json)
         return
@@ -555,13 +570,51 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
             model, records = train(videos, tmpl, settings, cycles=settings.learning.cycles,
                                    shape_space=shape_space, outdir=work, write_rrd=not no_rrd, progress=bar,
                                    method=method)
+            if label_files:
+                tracks = [str(r.csv) for r in records[-1].runs]
+                mixed = _learn_labelled(tracks, label_files, model, 1.0 / videos[0].fps, settings, out_model,
+                                        as_json, {"clips": list(clips), "cycles": settings.learning.cycles},
+                                        save=False)
             # written with the results: a run that fails leaves no configuration behind
             write_text(work / "config.yaml", dump_yaml(settings))
+            if label_files:
+                _save_labelled(mixed, out_model, as_json)
+                return
             save_model(out_model, model)
     finally:
         for v in videos:
             v.close()
     _learn_report(model, records, out_model, as_json)
+
+
+def _learn_labelled(tracks, label_files, model, tau, settings, out_model, as_json, provenance, *, save=True):
+    """``learn --labels``: the mixed-state model from the final tracks (see :func:`trackcli.run.train.learn_labelled`)."""
+    from trackcli.run.train import learn_labelled
+
+    if len(label_files) != len(tracks):
+        raise click.UsageError(f"--labels: give one labels file per training clip or track ({len(tracks)}), "
+                               f"got {len(label_files)}")
+    mixed = learn_labelled(tracks, label_files, model.template, model.space, tau, settings, provenance)
+    if save:
+        _save_labelled(mixed, out_model, as_json)
+    return mixed
+
+
+def _save_labelled(mixed, out_model, as_json) -> None:
+    from trackcli.dynamics.mixed import save_mixed
+
+    save_mixed(out_model, mixed)
+    rep = mixed.provenance.get("mixed_learning", {})
+    if as_json:
+        _echo_json(_clean_json({"model": str(out_model), "kind": "mixed-state", "labels": mixed.names,
+                                "transitions": mixed.T.tolist(), "learning": rep}))
+        return
+    click.echo(f"wrote mixed-state model {out_model}: labels {', '.join(mixed.names)}")
+    for name, r in rep.get("labels", {}).items():
+        click.echo(f"  {name}: {r['triples']} frame triples from {r['runs']} run(s), residual RMS "
+                   f"{r['residual_rms']:.3g}, spectral radius {r['spectral_radius']:.4f}")
+    click.echo("  transitions: " + "; ".join(f"{n} -> " + ", ".join(f"{v:.3f}" for v in row)
+                                             for n, row in zip(mixed.names, mixed.T)))
 
 
 def _learn_report(model, records, path, as_json: bool) -> None:
@@ -631,9 +684,13 @@ def inspect_cmd(model_path, template, config, fps, as_json):
     """
     import numpy as np
 
+    from trackcli.dynamics.mixed import is_mixed_file
     from trackcli.dynamics.model import load_model, place_dynamics, place_space
     from trackcli.shapes.template import load_template
 
+    if is_mixed_file(model_path):
+        _inspect_mixed(model_path, template, config, fps, as_json)
+        return
     m = load_model(model_path)
     dyn, space = m.dynamics, m.space
     placement = None
@@ -711,6 +768,138 @@ def inspect_cmd(model_path, template, config, fps, as_json):
         click.echo(f"  learned from  {', '.join(map(str, src))} ({prov.get('cycles', 0)} cycle(s))")
 
 
+def _mode_rows(dyn, space) -> list[str]:
+    import numpy as np
+
+    names = list(space.names)
+    rows = ["    |lambda|  damping(1/s)  freq(Hz)  decay(s)  period(s)  dominant components"]
+    for x in dyn.modes():
+        dom = ", ".join(f"{names[i]} {w:.2f}" for i, w in x.dominant(3, space.H))
+        per = f"{x.period:9.3f}" if np.isfinite(x.period) else "        -"
+        dec = f"{x.decay_time:8.3f}" if np.isfinite(x.decay_time) else "     inf"
+        rows.append(f"    {x.modulus:8.4f}  {x.beta:12.3f}  {x.frequency:8.3f}  {dec}  {per}  {dom}"
+                    + ("" if x.stable else "  UNSTABLE"))
+    return rows
+
+
+def _mixed_dynamics_for(model_path, mm, template, config, fps):
+    """The mixed model's labels on a shape-space (the template's, or the model's own), or None."""
+    import numpy as np
+
+    from trackcli.dynamics.mixed import build_dynamics
+    from trackcli.dynamics.model import place_dynamics, place_space
+    from trackcli.run.clips import template_space
+    from trackcli.shapes.template import load_template
+
+    settings = _settings(config, {})
+    learned = [lab.ar2.tau for lab in mm.labels if lab.ar2 is not None]
+    if template:
+        tmpl = load_template(template)
+    elif mm.space is not None:
+        tmpl = None
+    else:
+        return None, None
+    rate = fps or (1.0 / learned[0] if learned else _clip_fps(tmpl.clip if tmpl is not None else None) or 25.0)
+    tau = 1.0 / rate
+    p = settings.placement
+    noise = dict(translation_noise=p.translation_noise, deformation_noise=p.deformation_noise, coupling=p.coupling,
+                 max_spectral_radius=settings.learning.max_spectral_radius)
+    if mm.space is None:
+        space = template_space(tmpl, template, settings.shape_space)
+        X0 = np.zeros(space.Nx)
+        placed = None
+    elif tmpl is not None:
+        space, X0 = place_space(mm.space, tmpl)
+        placed = [None if lab.ar2 is None else place_dynamics(lab.ar2, space, X0, tau, **noise) for lab in mm.labels]
+    else:
+        space, X0, placed = mm.space, np.zeros(mm.space.Nx), None
+    return build_dynamics(mm, space, tau, X0=X0, placed=placed), space
+
+
+def _clip_fps(clip) -> float | None:
+    """The frame rate of the clip a template was drawn on, when it can be opened here."""
+    from trackcli.io.video import open_video
+
+    if not clip:
+        return None
+    try:
+        with open_video(clip) as v:
+            return float(v.fps)
+    except Exception:  # the clip moved or is not readable here: the caller falls back
+        return None
+
+
+def _inspect_mixed(model_path, template, config, fps, as_json: bool) -> None:
+    """``inspect`` of a mixed-state model: every label's model (and modes), T, the label durations."""
+    import numpy as np
+
+    from trackcli.dynamics.ar2 import AR2
+    from trackcli.dynamics.mixed import load_mixed
+
+    mm = load_mixed(model_path)
+    dyn, space = _mixed_dynamics_for(model_path, mm, template, config, fps)
+    T = mm.T
+    stay = np.diag(T)
+    durations = [None if s >= 1 else float(1.0 / (1.0 - s)) for s in stay]
+    labels = []
+    for i, lab in enumerate(mm.labels):
+        d: dict = {"name": lab.name, "kind": lab.kind, "mean_duration_frames": durations[i]}
+        if lab.bounce is not None:
+            d["bounce"] = lab.bounce.to_dict()
+            if dyn is not None:
+                d["bounce"]["contact_px"] = float(dyn.models[i].contact)
+        elif lab.handset is not None:
+            d["dynamics"] = lab.handset_raw
+        if dyn is not None and isinstance(dyn.models[i], AR2):
+            ar = dyn.models[i]
+            d["spectral_radius"] = ar.spectral_radius()
+            d["modes"] = [_mode_dict(x, space.H) for x in ar.modes()]
+        labels.append(d)
+    info = {"model": str(model_path), "kind": "mixed-state", "labels": labels, "transitions": T.tolist(),
+            "initial": mm.initial_distribution().tolist(),
+            "initial_source": "given" if mm.initial is not None else "stationary distribution of T",
+            "provenance": mm.provenance}
+    if space is not None:
+        info["shape_space"] = {"kind": space.kind, "components": list(space.names)}
+        info["frame_interval_s"] = dyn.tau
+    if as_json:
+        _echo_json(_clean_json(info))
+        return
+    names = mm.names
+    click.echo(f"mixed-state model {model_path}: {len(names)} labels ({', '.join(names)})"
+               + (f", on template {template}" if template else ""))
+    if space is not None:
+        click.echo(f"  shape-space   {space.kind}: {', '.join(space.names)}; frame interval {dyn.tau:.4g} s")
+    width = max(len(n) for n in names)
+    click.echo("  transitions T[i, j] = P(next label j | label i):")
+    click.echo("    " + " " * width + "  " + "  ".join(f"{n:>{max(width, 6)}}" for n in names))
+    for n, row in zip(names, T):
+        click.echo(f"    {n:>{width}}  " + "  ".join(f"{v:>{max(width, 6)}.4f}" for v in row))
+    init = mm.initial_distribution()
+    click.echo("  initial       " + ", ".join(f"{n} {v:.3f}" for n, v in zip(names, init))
+               + ("" if mm.initial is not None else " (stationary distribution of T)"))
+    for i, lab in enumerate(mm.labels):
+        dur = "stays for good" if durations[i] is None else f"mean stay {durations[i]:.3g} frame(s)"
+        click.echo(f"  label {lab.name} ({lab.kind}; {dur})")
+        if lab.bounce is not None:
+            b = lab.bounce
+            line = (f"floor y = {b.point[1]:g} px" if b.normal == (0.0, -1.0)
+                    else f"line through ({b.point[0]:g}, {b.point[1]:g}) with normal ({b.normal[0]:.3g}, {b.normal[1]:.3g})")
+            contact = f", outline reaches {dyn.models[i].contact:.1f} px from its centre towards it" if dyn else ""
+            click.echo(f"    bounce on the {line}{contact}; restitution {b.restitution:g}, friction {b.friction:g}, "
+                       f"rebound noise {b.noise:g} x the impact speed; other components move as {b.base}")
+            continue
+        if lab.handset is not None:
+            click.echo(f"    hand-set: {lab.handset_raw}")
+        if dyn is None:
+            click.echo("    (give --template to see its modes on a template's shape-space)")
+            continue
+        ar = dyn.models[i]
+        click.echo(f"    spectral radius {ar.spectral_radius():.4f}; modes (slowest first):")
+        for row in _mode_rows(ar, space):
+            click.echo("  " + row)
+
+
 @cli.command("simulate")
 @click.argument("model_path", metavar="MODEL", type=click.Path(dir_okay=False))
 @click.option("--frames", "n_frames", type=click.IntRange(min=2, max=1_000_000), default=250, show_default=True,
@@ -721,11 +910,22 @@ def inspect_cmd(model_path, template, config, fps, as_json):
 @click.option("-o", "--output", type=click.Path(dir_okay=False), help="Recording (.rrd) to write "
               "(default: MODEL_sim.rrd); a PNG of the trajectories is written beside it.")
 @click.option("--size", help="Canvas 'W,H' for the PNG (default: the template's frame size).")
-def simulate_cmd(model_path, n_frames, n_paths, seed, output, size):
+@click.option("--template", type=click.Path(dir_okay=False),
+              help="Mixed-state model: the template whose shape-space its labels move (needed by a hand-written "
+                   "model, which has none of its own).")
+@click.option("--fps", type=click.FloatRange(min=0, min_open=True),
+              help="Mixed-state model: frame rate the hand-set labels are built for (default: the template's clip's, "
+                   "else 25).")
+def simulate_cmd(model_path, n_frames, n_paths, seed, output, size, template, fps):
     """Draw random sample paths from a model (AC Fig 11.7): the quickest sanity check.
 
     The PNG shows, for each path, the centroid trajectory and the contour every 10th frame
     over a blank canvas with the template in grey; the recording animates the paths.
+
+    \b
+    A mixed-state model's paths switch label as its transition matrix says; the PNG marks
+    each frame an event label (a bounce) moved, and the recording has each path's label
+    as a series (label index) and the labels' names in its parameters.
     """
     from pathlib import Path
 
@@ -736,8 +936,15 @@ def simulate_cmd(model_path, n_frames, n_paths, seed, output, size):
 
     from trackcli.io.outputs import output_dir, refuse_overwriting_inputs
 
+    from trackcli.dynamics.mixed import is_mixed_file
+
     out = Path(output) if output else Path(model_path).with_name(Path(model_path).stem + "_sim.rrd")
     refuse_overwriting_inputs({"-o/--output": out, "the PNG": out.with_suffix(".png")}, {"MODEL": model_path})
+    if is_mixed_file(model_path):
+        _simulate_mixed(model_path, template, fps, n_frames, n_paths, seed, out, size)
+        return
+    if template or fps:
+        raise click.UsageError("--template and --fps apply to mixed-state models only")
     m = load_model(model_path)
     canvas = None
     if size:
@@ -755,6 +962,49 @@ def simulate_cmd(model_path, n_frames, n_paths, seed, output, size):
             png.unlink(missing_ok=True)
             raise
     click.echo(f"wrote {out} and {png} ({n_paths} paths of {n_frames} frames)")
+
+
+def _simulate_mixed(model_path, template, fps, n_frames, n_paths, seed, out, size) -> None:
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from trackcli.dynamics.mixed import load_mixed
+    from trackcli.dynamics.simulate import record_paths, render_paths
+    from trackcli.io.outputs import output_dir
+    from trackcli.shapes.template import load_template
+
+    mm = load_mixed(model_path)
+    dyn, space = _mixed_dynamics_for(model_path, mm, template, None, fps)
+    if dyn is None:
+        raise click.UsageError(f"{model_path} is a hand-written mixed-state model: give --template")
+    tmpl = load_template(template) if template else mm.template
+    canvas = None
+    if size:
+        from trackcli.shapes.draw import parse_numbers
+
+        w, h = parse_numbers(size, 2, "--size")
+        canvas = (int(w), int(h))
+    rng = np.random.default_rng(seed)
+    sims = [dyn.simulate(n_frames, rng) for _ in range(n_paths)]
+    paths = np.stack([p for p, _ in sims])
+    labels = np.stack([lab for _, lab in sims])
+    events = [i for i, lab in enumerate(mm.labels) if lab.bounce is not None]
+    marks = [np.flatnonzero(np.isin(lab, events)) for lab in labels]
+    view = SimpleNamespace(space=space, template=tmpl, dynamics=SimpleNamespace(tau=dyn.tau),
+                           provenance={"mixed_state_model": str(model_path), "labels": mm.names, **mm.provenance})
+    png = out.with_suffix(".png")
+    with output_dir(out.parent):
+        try:  # both outputs or none
+            render_paths(view, paths, png, canvas=canvas, marks=marks)
+            record_paths(view, paths, out, seed=seed, labels=labels, label_names=mm.names)
+        except BaseException:
+            png.unlink(missing_ok=True)
+            raise
+    switches = int(sum((np.diff(lab) != 0).sum() for lab in labels))
+    visits = ", ".join(f"{n} {float((labels == i).mean()):.0%}" for i, n in enumerate(mm.names))
+    click.echo(f"wrote {out} and {png} ({n_paths} paths of {n_frames} frames; {switches} label switches; "
+               f"frames by label: {visits})")
 
 
 # ---------------------------------------------------------------------------------------------

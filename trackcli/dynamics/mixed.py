@@ -496,7 +496,8 @@ class MixedDynamics:
         path[0], path[1] = start, second
         labels = np.zeros(max(n_frames, 2), dtype=np.int64)
         y = int(self.draw_initial(1, rng)[0]) if label0 is None else int(label0)
-        labels[0] = labels[1] = y
+        # nothing has moved frames 0 and 1: an event label drawn first is shown as its base
+        labels[0] = labels[1] = y if isinstance(self.models[y], AR2) else self.models[y].base
         prev, cur = start[None], second[None]
         for k in range(2, n_frames):
             y_new = int(self.draw_labels(np.array([y]), rng)[0])
@@ -508,6 +509,41 @@ class MixedDynamics:
             path[k] = new[0]
             cur, y = new, y_new  # prev: X_{k-1} as the velocity sees it (moved by a bounce)
         return path[:n_frames], labels[:n_frames]
+
+
+class MixedPrediction:
+    """The prediction step of mixed-state CONDENSATION (001 §8), as a ``motion`` hook of
+    :func:`trackcli.trackers.condensation.step`, with each sample's label.
+
+    Each sample carries the label whose model moved it into the current frame (``moved``,
+    the ``y_{k-1}`` of 001 §8).  A step draws every selected sample's next label from
+    ``T[moved of its parent, :]`` and then its shape from that label's model.
+
+    001 §8 draws a sample's new label when its shape is predicted and uses it for the next
+    prediction; here the label is drawn one selection later, just before it is used.  The
+    selection weights do not depend on it (the shape they weigh was moved by the label
+    before), so the sample set has the same distribution, and the labels do not collapse
+    when a selection keeps only a few parents.
+    """
+
+    def __init__(self, dynamics: MixedDynamics, n: int, rng: np.random.Generator):
+        self.dynamics = dynamics
+        self.moved = dynamics.draw_initial(n, rng)
+        self.steps = 0
+
+    def __call__(self, prev: np.ndarray, cur: np.ndarray, rng: np.random.Generator,
+                 parents: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        labels = self.dynamics.draw_labels(self.moved[parents], rng)
+        self.moved = labels
+        self.steps += 1
+        return self.dynamics.predict(prev, cur, labels, rng)
+
+    def posterior(self, weights: np.ndarray) -> np.ndarray:
+        """The posterior probability of each label having moved the samples into this frame
+        (the sum of their weights); before any step, the initial distribution."""
+        if self.steps == 0:
+            return np.asarray(self.dynamics.initial, dtype=float)
+        return np.bincount(self.moved, weights=weights, minlength=self.dynamics.n_labels)
 
 
 def _draw(P: np.ndarray, rng: np.random.Generator) -> np.ndarray:

@@ -28,8 +28,11 @@ _COLOURS = [(40, 60, 255), (40, 200, 40), (255, 120, 0), (200, 0, 200), (0, 200,
 
 
 def render_paths(model: Model, paths: np.ndarray, png: Path, *, canvas: tuple[int, int] | None = None,
-                 every: int = 10) -> Path:
-    """PNG: template (grey), centroid trajectories, and the contour every ``every`` frames."""
+                 every: int = 10, marks: list[np.ndarray] | None = None) -> Path:
+    """PNG: template (grey), centroid trajectories, and the contour every ``every`` frames.
+
+    ``marks[k]``: frames of path ``k`` to mark with a black ring on its track (e.g. the
+    frames a mixed-state model's event label moved)."""
     import cv2
 
     space = model.space
@@ -56,6 +59,10 @@ def render_paths(model: Model, paths: np.ndarray, png: Path, *, canvas: tuple[in
         tracks.append((np.asarray(cents), col))
     for cents, col in tracks:
         cv2.polylines(img, [poly(cents)], False, col, 2, cv2.LINE_AA, shift=4)
+    for (cents, _), frames in zip(tracks, marks or []):
+        for t in frames:
+            x, y = (np.round(cents[int(t)] * 16)).astype(int)
+            cv2.circle(img, (int(x), int(y)), 6 * 16, (0, 0, 0), 2, cv2.LINE_AA, shift=4)
     cv2.putText(img, f"{len(paths)} paths x {paths.shape[1]} frames", (10, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6,
                 (0, 0, 0), 1, cv2.LINE_AA)
     ok, buf = cv2.imencode(".png", img)
@@ -64,16 +71,22 @@ def render_paths(model: Model, paths: np.ndarray, png: Path, *, canvas: tuple[in
     return png
 
 
-def record_paths(model: Model, paths: np.ndarray, rrd: Path, *, seed: int = 0) -> Path:
-    """Recording: each path's contour animated over the ``frame`` timeline, and its components as series."""
+def record_paths(model: Model, paths: np.ndarray, rrd: Path, *, seed: int = 0, labels: np.ndarray | None = None,
+                 label_names: list[str] | None = None) -> Path:
+    """Recording: each path's contour animated over the ``frame`` timeline, and its components as series.
+
+    ``labels`` ``(n_paths, n_frames)``: a mixed-state model's label per frame, logged as a
+    series ``series/label{k}`` (the index into ``label_names``, which go in the parameters)."""
     from trackcli.io.recording import Recording
 
     space = model.space
     tau = model.dynamics.tau
     n_paths, n_frames, _ = paths.shape
     with Recording(rrd, recording_id=f"simulate-seed{seed}", blueprint="simulate", properties={"seed": seed}) as rec:
-        rec.log_params("params", {"model_provenance": model.provenance, "paths": n_paths, "frames": n_frames,
-                                  "seed": seed})
+        params = {"model_provenance": model.provenance, "paths": n_paths, "frames": n_frames, "seed": seed}
+        if label_names is not None:
+            params["labels"] = list(label_names)
+        rec.log_params("params", params)
         c0, _, _ = contour_summary(space, np.zeros(space.Nx))
         for t in range(n_frames):
             rec.set_frame(t, t * tau)
@@ -86,4 +99,7 @@ def record_paths(model: Model, paths: np.ndarray, rrd: Path, *, seed: int = 0) -
         for k in range(n_paths):
             rec.send_series(f"series/path{k}", frames, frames * tau, paths[k], names=list(space.names),
                             unit="shape vector")
+            if labels is not None:
+                rec.send_series(f"series/label{k}", frames, frames * tau, labels[k].astype(float),
+                                names=f"label of path {k}", unit="label")
     return rrd

@@ -74,6 +74,7 @@ SERIES = "series"
 HISTOGRAM = "histogram"
 PARAMS = "params"
 TEXT_LOG = "log"
+LABELS = "labels"
 
 BLUEPRINTS = ("track", "draw", "simulate")
 FRAME_STORAGE = ("auto", "jpeg", "asset")
@@ -81,7 +82,7 @@ FRAME_STORAGE = ("auto", "jpeg", "asset")
 NATIVE_VIEWER_CODECS = frozenset({"av01"})
 #: How series units are named in the layout, in the order their plots are stacked.
 UNIT_TITLES = {"px": "pixels", "count": "count", "samples": "effective sample size",
-               "log-likelihood": "log-likelihood"}
+               "log-likelihood": "log-likelihood", "probability": "label posterior"}
 TEXT_LEVELS = ("CRITICAL", "ERROR", "WARN", "INFO", "DEBUG", "TRACE")
 VIDEO_ASSET_SUFFIXES = (".mp4",)
 
@@ -232,6 +233,8 @@ def make_blueprint(kind: str | None, content: Mapping[str, Any] | None = None) -
                  rrb.Spatial2DView(origin=HISTOGRAM, name="histogram over time")]
     if PARAMS in roots:
         tabs.append(rrb.TextDocumentView(origin=PARAMS, name="parameters"))
+    if LABELS in roots:
+        tabs.insert(0, rrb.Spatial2DView(origin=LABELS, name="labels over time"))
     if TEXT_LOG in roots:
         tabs.append(rrb.TextLogView(origin=TEXT_LOG, name="log"))
     side_parts = [*series_views] + ([rrb.Tabs(*tabs)] if tabs else [])
@@ -853,6 +856,32 @@ class Recording:
                                                scale=[float(step[0]), 1.0, 1.0]), static=True)
         self.stream.log(entity, rr.AnyValues(x_edges=e.tolist(), first_frame=int(first_frame)),
                         static=True)
+
+    def log_label_strip(self, entity: str, posterior: np.ndarray, names: Sequence[str], *,
+                        first_frame: int = 0, row_height: int = 12) -> None:
+        """Log the static label strip of a mixed-state run: one band per label, one column per
+        frame, brighter where the label's posterior probability is higher (viridis: dark 0,
+        yellow 1).  Pixel column ``t`` is frame ``first_frame + t``; the label names are stored
+        on the entity (``labels``, top to bottom).
+
+        Parameters
+        ----------
+        posterior : ndarray of shape (T, L)
+            Per frame the posterior probability of each of the ``L`` labels.
+        """
+        import cv2
+        import rerun as rr
+
+        P = np.asarray(posterior, dtype=float)
+        if P.ndim != 2 or P.shape[1] != len(names) or P.shape[0] < 1:
+            raise DataError(f"posterior must have shape (T, {len(names)}), got {P.shape}")
+        P = np.clip(np.nan_to_num(P, nan=0.0), 0.0, 1.0)
+        grey = np.rint(255 * P.T).astype(np.uint8)  # (L, T)
+        colour = cv2.applyColorMap(np.repeat(grey, row_height, axis=0), cv2.COLORMAP_VIRIDIS)[..., ::-1]
+        self._note(entity)
+        self.stream.log(entity, rr.Image(np.ascontiguousarray(colour), color_model="RGB"), static=True)
+        self.stream.log(entity, rr.Transform3D(translation=[float(first_frame), 0.0, 0.0]), static=True)
+        self.stream.log(entity, rr.AnyValues(labels=list(names), first_frame=int(first_frame)), static=True)
 
     # -- text ----------------------------------------------------------------
 

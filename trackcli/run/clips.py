@@ -145,7 +145,9 @@ def run_clip(
         format and, as a second contour (``video/smoothed``), to the recording.
     extra_columns : list of str, optional
         Names of the tracker's own values (:attr:`FrameResult.extra`): CSV columns after
-        the common ones, and time series ``series/extra/NAME`` in the recording.
+        the common ones, and time series ``series/extra/NAME`` in the recording; label
+        posteriors ``p_<label>`` (mixed-state dynamics) go in one plot ``series/labels`` and
+        a label strip ``labels/posterior_over_time`` instead.
     """
     if outline_points == 1:
         raise ConfigError("output.outline_points: expected 0 (no outline) or at least 2 points, got 1")
@@ -235,8 +237,17 @@ def run_clip(
                 if extras:
                     f = np.asarray(series["frame"], dtype=np.int64)
                     t = np.asarray(series["time"], dtype=float)
+                    values = np.asarray(extras, dtype=float)
+                    # a mixed-state run's label posteriors (p_<label>): one plot and a label strip
+                    labels = [j for j, e in enumerate(extra_names) if e.startswith("p_")]
+                    if labels:
+                        names = [extra_names[j][2:] for j in labels]
+                        rec.send_series("series/labels", f, t, values[:, labels], names=names, unit="probability")
+                        rec.log_label_strip("labels/posterior_over_time", values[:, labels], names,
+                                            first_frame=int(f[0]))
                     for j, e in enumerate(extra_names):
-                        rec.send_series(f"series/extra/{e}", f, t, np.asarray(extras, dtype=float)[:, j], names=e)
+                        if j not in labels:
+                            rec.send_series(f"series/extra/{e}", f, t, values[:, j], names=e)
                 if smoothed_centroids:
                     c = np.asarray(smoothed_centroids)
                     rec.send_series("series/centroid_smoothed", c[:, 0].astype(np.int64), c[:, 1], c[:, 2:],

@@ -312,3 +312,48 @@ def learn_from_tracks(track_paths: Sequence[str], template: Template, settings: 
     provenance = {"method": method, "tracks": list(map(str, track_paths)), "frames": [len(s) for s in sequences],
                   "cycles": 0, "shape_space": kind, "learning": report}
     return Model(template, space, dynamics, settings, provenance)
+
+
+def learn_labelled(track_paths: Sequence[str | Path], label_files: Sequence[str | Path], template: Template,
+                   space: ShapeSpace, tau: float, settings: Settings, provenance: dict[str, Any] | None = None) -> Any:
+    """A mixed-state model from tracks and their labelled frame ranges (``learn --labels``).
+
+    ``label_files[i]`` (``start,end,label`` rows, see
+    :func:`trackcli.dynamics.mixed.read_label_ranges`) labels the frames of
+    ``track_paths[i]``, by the track's ``frame`` column.  Frames the tracker lost and frames
+    no range covers are left out.  Each label gets AR(2) dynamics by maximum likelihood from
+    its runs of frames pooled over the tracks, and ``T`` is counted from the label sequences
+    (:func:`trackcli.dynamics.mixed.learn_mixed`).  Returns a
+    :class:`~trackcli.dynamics.mixed.MixedModel` holding ``template`` and ``space``.
+    """
+    from trackcli.dynamics.mixed import LabelSpec, MixedModel, learn_mixed, read_label_ranges
+
+    if len(label_files) != len(track_paths):
+        raise ConfigError(f"--labels: give one labels file per training clip or track ({len(track_paths)}), "
+                          f"got {len(label_files)}")
+    ranges = [read_label_ranges(p) for p in label_files]
+    names: list[str] = []
+    for rs in ranges:
+        for _, _, lab in rs:
+            if lab not in names:
+                names.append(lab)
+    if len(names) < 2:
+        raise DataError(f"--labels: a mixed-state model needs at least two labels, the files name {names}")
+    sequences, label_seqs = [], []
+    for path, rs, lf in zip(track_paths, ranges, label_files):
+        frames, X, _ = read_track(path, space.names)
+        lost = read_lost(path, len(X))
+        seq = np.full(len(frames), -1, dtype=np.int64)
+        for a, b, lab in rs:
+            seq[(frames >= a) & (frames <= b)] = names.index(lab)
+        if not (seq >= 0).any():
+            raise DataError(f"{lf}: no range covers a frame of {path} (frames {int(frames[0])}-{int(frames[-1])})")
+        if lost is not None:
+            seq[lost] = -1
+        sequences.append(X)
+        label_seqs.append(seq)
+    models, T, report = learn_mixed(sequences, label_seqs, names, tau,
+                                    max_spectral_radius=settings.learning.max_spectral_radius)
+    labels = tuple(LabelSpec(n, ar2=m) for n, m in zip(names, models))
+    prov = {**(provenance or {}), "labels_files": [str(p) for p in label_files], "mixed_learning": report}
+    return MixedModel(labels, T, None, template, space, prov)

@@ -13,7 +13,7 @@ from typing import Any, Iterable, Iterator
 
 import numpy as np
 
-from trackcli.dynamics.mixed import MixedDynamics
+from trackcli.dynamics.mixed import MixedDynamics, MixedPrediction
 from trackcli.errors import ConfigError
 from trackcli.io.config import CondensationSettings, MeasurementSettings, Settings
 from trackcli.observe import discriminant as observe
@@ -102,7 +102,8 @@ class CondensationTracker(Tracker):
 
     With mixed-state dynamics (:class:`~trackcli.dynamics.mixed.MixedDynamics`, 001 §8)
     every sample also carries a motion label; the prediction draws it from the transition
-    matrix and moves the sample with that label's model (:meth:`_motion`), and each frame
+    matrix and moves the sample with that label's model
+    (:class:`~trackcli.dynamics.mixed.MixedPrediction`), and each frame
     reports the posterior of every label in ``extra`` (``p_<label>``).
 
     ``hist_range`` is the range of horizontal translation ``tx`` covered by the histogram
@@ -138,8 +139,7 @@ class CondensationTracker(Tracker):
             if c.init != "template":
                 raise ConfigError("condensation.init: steady_state is not available with a mixed-state model "
                                   "(it has no single steady state); use init: template")
-            # per sample, the label whose model moved it into this frame (y_{k-1} of 001 §8)
-            self.moved = self.mixed.draw_initial(particles.n, self.rng)
+            self.labels = MixedPrediction(self.mixed, particles.n, self.rng)
             self.extra_columns = [f"p_{name}" for name in self.mixed.names]
         self.observation = observation_model(c.likelihood, settings.measurement, c)
         self.hist_range = hist_range
@@ -173,22 +173,6 @@ class CondensationTracker(Tracker):
             fraction=c.reacquire_fraction)
         return self.jumps if reacquire is None else _chain(self.jumps, reacquire)
 
-    def _motion(self, prev: np.ndarray, cur: np.ndarray, rng: np.random.Generator,
-                parents: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Mixed-state prediction (001 §8): each sample's label ``y_{k-1}`` drawn from
-        ``T[y_{k-2}, :]``, then ``X_k`` from the model of ``y_{k-1}``.
-
-        001 §8 draws a sample's new label when its shape is predicted and uses it for the
-        *next* prediction.  The label is drawn here one selection later, just before it is
-        used: the selection weights do not depend on it (the shape they weigh was moved by
-        the label before), so the sample set has the same distribution, and labels do not
-        collapse when the selection keeps only a few parents.
-        """
-        assert self.mixed is not None
-        labels = self.mixed.draw_labels(self.moved[parents], rng)
-        self.moved = labels
-        return self.mixed.predict(prev, cur, labels, rng)
-
     def step(self, frame: FrameData) -> FrameResult:
         c, m, space = self.settings.condensation, self.settings.measurement, self.space
         if self.judge is None:
@@ -210,7 +194,7 @@ class CondensationTracker(Tracker):
             particles, info = cond.step(self.particles, self.dynamics, loglik, self.rng, n_out=self.schedule(self.k),
                                         scheme=c.resampling, ess_threshold=c.ess_threshold,
                                         propose=self._proposal(ev, frame), threads=self.threads,
-                                        motion=self._motion if self.mixed is not None else None)
+                                        motion=self.labels if self.mixed is not None else None)
             ess = info.ess
             ll = info.loglik
             ancestry = cond.ParticleSet(info.parent_shapes, particles.cur, particles.log_w)
@@ -247,10 +231,7 @@ class CondensationTracker(Tracker):
         display["particles"] = ancestry
         extra: dict[str, float] = {}
         if self.mixed is not None:
-            # the posterior of the label that moved the samples into this frame (on the first
-            # frame nothing has moved yet: the initial distribution)
-            p = (np.bincount(self.moved, weights=w, minlength=self.mixed.n_labels) if self.k > 1
-                 else self.mixed.initial)
+            p = self.labels.posterior(w)
             extra = {f"p_{name}": float(v) for name, v in zip(self.mixed.names, p)}
         return FrameResult(
             index=frame.index, time=frame.time, X=X, X_std=X_std, contour=contour,
