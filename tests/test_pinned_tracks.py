@@ -38,14 +38,30 @@ def _rows(path: Path) -> tuple[list[str], list[list[str]]]:
     return rows[0], rows[1:]
 
 
+def _ulp(text: str) -> float:
+    """One unit in the last printed decimal place of a CSV cell."""
+    digits = text.split(".", 1)[1] if "." in text else ""
+    digits = digits.split("e", 1)[0].split("E", 1)[0]
+    return 10.0 ** -len(digits)
+
+
 def _same(a: str, b: str) -> bool:
+    """Equal up to the arithmetic of the installed numpy/OpenCV build.
+
+    Builds of the same versions (and compatible later versions) may differ in the last bits
+    of a float (other SIMD paths, another summation order), which moves a printed value by
+    a unit in its last place or a relative 1e-6.  A change to what a tracker computes moves
+    its outputs far more than that.
+    """
     if a == b:
         return True
     try:
         x, y = float(a), float(b)
     except ValueError:
         return False
-    return math.isclose(x, y, rel_tol=1e-9, abs_tol=1e-9) or (math.isnan(x) and math.isnan(y))
+    if math.isnan(x) and math.isnan(y):
+        return True
+    return abs(x - y) <= 2 * max(_ulp(a), _ulp(b)) + 1e-5 * max(abs(x), abs(y))
 
 
 @pytest.mark.parametrize("name", sorted(RUNS))
@@ -53,7 +69,11 @@ def test_the_tracks_of_the_sample_clips_are_as_pinned(name, tmp_path, monkeypatc
     monkeypatch.chdir(ROOT)
     res = CliRunner().invoke(cli, ["-q", "track", *RUNS[name], "-o", str(tmp_path), "--no-rrd"])
     assert res.exit_code == 0, res.output
-    head_new, new = _rows(tmp_path / name)
+    _assert_as_pinned(name, tmp_path / name)
+
+
+def _assert_as_pinned(name: str, path: Path) -> None:
+    head_new, new = _rows(path)
     head_old, old = _rows(PINNED / name)
     assert head_new == head_old
     assert len(new) == len(old)
@@ -62,12 +82,16 @@ def test_the_tracks_of_the_sample_clips_are_as_pinned(name, tmp_path, monkeypatc
         assert not bad, f"{name} row {i}: first differences {bad[:4]}"
 
 
-@pytest.mark.parametrize("threads", ["1", "2"])
-def test_the_number_of_threads_does_not_change_the_track(threads, tmp_path, monkeypatch):
-    """Scoring the samples in one thread or two gives the pinned CSV, to the digit."""
+def test_the_number_of_threads_does_not_change_the_track(tmp_path, monkeypatch):
+    """Scoring the samples in one thread or two gives the same CSV, to the digit, and the pinned one."""
     monkeypatch.chdir(ROOT)
     name = "test.condensation.csv"
-    res = CliRunner().invoke(cli, ["-q", "track", *RUNS[name], "--threads", threads, "-o", str(tmp_path),
-                                   "--no-rrd"])
-    assert res.exit_code == 0, res.output
-    assert (tmp_path / name).read_text() == (PINNED / name).read_text()
+    texts = []
+    for threads in ("1", "2"):
+        out = tmp_path / threads
+        res = CliRunner().invoke(cli, ["-q", "track", *RUNS[name], "--threads", threads, "-o", str(out),
+                                       "--no-rrd"])
+        assert res.exit_code == 0, res.output
+        texts.append((out / name).read_text())
+        _assert_as_pinned(name, out / name)
+    assert texts[0] == texts[1]
