@@ -17,7 +17,7 @@
 # Example: examples/bouncing_ball.sh sample_data/bouncing_ball.mp4 22,52,36,36 318
 set -euo pipefail
 if [ $# -lt 3 ] || [ $# -gt 4 ]; then
-    sed -n '6,12p' "$0" >&2
+    sed -n '6,10p' "$0" >&2
     exit 2
 fi
 CLIP=$1 BOX=$2 FLOOR=$3 OUT=${4:-runs/bouncing_ball}

@@ -402,3 +402,13 @@ def test_learn_with_labels_writes_a_mixed_model_that_tracks(ball_runs, tmp_path)
     res = runner.invoke(cli, ["learn", "--template", str(out / "ball.yaml"), "--from-tracks", str(runs["mixed"]),
                               "--labels", str(labels), "--labels", str(labels), "-o", str(tmp_path / "x.yaml")])
     assert res.exit_code != 0 and "one labels file per training clip or track" in res.output
+
+
+def test_a_mixed_model_cannot_start_from_a_steady_state(ball_runs, tmp_path):
+    clip, _, out = ball_runs
+    cfg = tmp_path / "ss.yaml"
+    cfg.write_text("condensation:\n  init: steady_state\n")
+    res = CliRunner().invoke(cli, ["track", str(clip), "--model", str(EXAMPLES / "bouncing_ball.mixed.yaml"),
+                                   "--template", str(out / "ball.yaml"), "-c", str(cfg), "-o", str(tmp_path / "o")])
+    assert res.exit_code != 0 and "steady_state is not available with a mixed-state model" in res.output
+    assert not (tmp_path / "o").exists()

@@ -365,7 +365,9 @@ def _video_overrides(fps, start, end, step) -> dict:
 @click.argument("clips", nargs=-1, required=True, type=click.Path())
 @click.option("-c", "--config", type=click.Path(dir_okay=False),
               help="Configuration file (YAML) or preset name (`trackcli config list`).")
-@click.option("--model", type=click.Path(dir_okay=False), help="Model learned by `trackcli learn`.")
+@click.option("--model", type=click.Path(dir_okay=False),
+              help="Model learned by `trackcli learn`, or a mixed-state model (kind: trackcli-mixed: a motion "
+                   "label per sample, p_<label> columns; see the README).")
 @click.option("--template", type=click.Path(dir_okay=False),
               help="Template drawn on this clip: the initial placement (with --model) or, alone, "
                    "the shape to track with hand-set dynamics.")

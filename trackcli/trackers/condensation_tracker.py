@@ -126,6 +126,9 @@ class CondensationTracker(Tracker):
                 v[:, :2] = c.init_speed * self.rng.standard_normal((particles.n, 2))
                 particles = cond.ParticleSet(particles.cur - v, particles.cur, particles.log_w)
         else:
+            if isinstance(dynamics, MixedDynamics):
+                raise ConfigError("condensation.init: steady_state is not available with a mixed-state model "
+                                  "(it has no single steady state); use init: template")
             if not dynamics.is_stable():
                 raise ConfigError("condensation.init: steady_state needs dynamics with a steady state, and these have "
                                   f"none (spectral radius {dynamics.spectral_radius():.4g}; the default translation is "
@@ -136,9 +139,6 @@ class CondensationTracker(Tracker):
         # mixed-state dynamics (001 §8): a motion label beside every sample
         self.mixed = dynamics if isinstance(dynamics, MixedDynamics) else None
         if self.mixed is not None:
-            if c.init != "template":
-                raise ConfigError("condensation.init: steady_state is not available with a mixed-state model "
-                                  "(it has no single steady state); use init: template")
             self.labels = MixedPrediction(self.mixed, particles.n, self.rng)
             self.extra_columns = [f"p_{name}" for name in self.mixed.names]
         self.observation = observation_model(c.likelihood, settings.measurement, c)
