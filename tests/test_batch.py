@@ -508,3 +508,20 @@ def test_example_manifest_is_valid_and_matches_its_script(tmp_path):
     assert all(j.truth is not None for j in jobs)
     assert [j.object_id for j in jobs] == [0, 0, 0, 2, 0]
     assert jobs[-1].model is None and jobs[0].settings.seed == 0
+
+
+@pytest.mark.parametrize("env, changed", [({"MALLOC_TRIM_THRESHOLD_": "65536"}, True), ({}, False)])
+def test_a_dask_workers_allocator_is_restored_only_when_the_trim_threshold_is_set(env, changed):
+    """Dask's nanny sets MALLOC_TRIM_THRESHOLD_, which switches off glibc's dynamic mmap threshold."""
+    import subprocess
+    import sys
+
+    import platform
+
+    if not sys.platform.startswith("linux") or platform.libc_ver()[0] != "glibc":
+        pytest.skip("mallopt is glibc's")
+    code = "from trackcli.run.batch import _restore_malloc; print(_restore_malloc())"
+    base = {k: v for k, v in os.environ.items() if k != "MALLOC_TRIM_THRESHOLD_"}
+    r = subprocess.run([sys.executable, "-c", code], env={**base, **env}, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == str(changed)
