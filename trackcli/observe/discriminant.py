@@ -290,7 +290,9 @@ def per_normal(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: 
         total = np.bincount(row, weights=g, minlength=k1 - k0)
         n_in = np.bincount(row[inside], minlength=k1 - k0)
         log_d[k0:k1] = base[k0:k1] + n_in * log_ratio_in[k0:k1] + np.log(miss + total)
-    # colour: the log-ratio map sampled inside (-offsets) and outside (+offsets) every normal
+    # colour: the log-ratio map sampled inside (-offsets) and outside (+offsets) every normal;
+    # beyond the frame's edge it reads 0 (no evidence either way): replicating the border
+    # would let an outline that has left the frame score the colours of the frame's edge
     offs = app.colour_offsets
     u = np.concatenate([-offs[::-1], offs])
     colour = np.empty(k_total)
@@ -300,7 +302,7 @@ def per_normal(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: 
     weights = np.concatenate([np.full(nk, 0.5 / nk), np.full(nk, -0.5 / nk)]).astype(np.float32)
     for k0 in range(0, k_total, step):
         k1 = min(k0 + step, k_total)
-        colour[k0:k1] = _remap_rows(ev.cmap, pts[k0:k1], nrm[k0:k1], u) @ weights
+        colour[k0:k1] = _remap_rows(ev.cmap, pts[k0:k1], nrm[k0:k1], u, outside=0.0) @ weights
     return log_d.reshape(lead), colour.reshape(lead)
 
 

@@ -253,10 +253,12 @@ def _check_threshold(threshold: float) -> float:
 # Bilinear sampling along normals (cv2.remap)
 
 
-def _remap_rows(img: np.ndarray, pts: np.ndarray, nrm: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+def _remap_rows(img: np.ndarray, pts: np.ndarray, nrm: np.ndarray, offsets: np.ndarray, *,
+                outside: float | None = None) -> np.ndarray:
     """Sample ``img`` at ``pts[k] + offsets[j] * nrm[k]``: (K, 2), (K, 2), (L,) -> (K, L).
 
-    ``K`` and ``L`` must both be at most :data:`REMAP_MAX_SIDE`.
+    Outside the image the border pixels are replicated, or with ``outside`` that value is
+    read.  ``K`` and ``L`` must both be at most :data:`REMAP_MAX_SIDE`.
     """
     k = pts.shape[0]
     # Both coordinate maps from one small matrix product: [n, p] @ [u; 1].
@@ -269,7 +271,10 @@ def _remap_rows(img: np.ndarray, pts: np.ndarray, nrm: np.ndarray, offsets: np.n
         raise DataError("points and normals must be finite (and within float32 range); got NaN or infinite coordinates")
     basis = np.stack([offsets, np.ones_like(offsets)]).astype(np.float32)
     maps = coeff @ basis
-    return cv2.remap(img, maps[:k], maps[k:], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    if outside is None:
+        return cv2.remap(img, maps[:k], maps[k:], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return cv2.remap(img, maps[:k], maps[k:], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                     borderValue=float(outside))
 
 
 def sample_along_normals(
