@@ -40,9 +40,10 @@ sed -E "s/^( *bounce: \{base: flight, floor: )[0-9.]+/\1$FLOOR/" "$HERE/bouncing
 grep -q "floor: $FLOOR," "$OUT/ball.mixed.yaml" || { echo "error: could not set the floor in $OUT/ball.mixed.yaml" >&2; exit 1; }
 $T inspect "$OUT/ball.mixed.yaml" --template "$OUT/ball.yaml"
 
-echo "== track: the single flight model, then the mixed-state model"
+echo "== track: the single flight model, then the mixed-state model (both without the jump mixture)"
 $T track -c "$HERE/bouncing_ball.flight.yaml" --template "$OUT/ball.yaml" "$CLIP" -o "$OUT/single" --seed 0
-$T track --model "$OUT/ball.mixed.yaml" --template "$OUT/ball.yaml" "$CLIP" -o "$OUT/mixed" --seed 0
+$T track -c "$HERE/bouncing_ball.settings.yaml" --model "$OUT/ball.mixed.yaml" --template "$OUT/ball.yaml" "$CLIP" \
+    -o "$OUT/mixed" --seed 0
 
 TRUTH="${CLIP%.*}.truth.csv"
 if [ -f "$TRUTH" ]; then

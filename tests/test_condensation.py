@@ -316,3 +316,22 @@ def test_step_evaluates_loglik_in_blocks_and_reassembles_them():
     assert sizes == [cond.LOGLIK_BLOCK, cond.LOGLIK_BLOCK, 17]
     expected, _ = cond.normalise_log_weights(loglik(out.cur))
     np.testing.assert_allclose(out.weights, expected, rtol=1e-12)
+
+
+def test_a_jump_of_the_motion_prior_is_an_impulse():
+    """A jumped sample moves by the jump and keeps it as velocity; the others are untouched."""
+    from trackcli.trackers.condensation_tracker import translation_jumps
+
+    rng = np.random.default_rng(4)
+    prev = rng.normal(size=(2000, 4))
+    new = prev + rng.normal(size=(2000, 4))
+    propose = translation_jumps(0.25, 3.0)
+    out_prev, out, corr = propose(prev, new, np.random.default_rng(9))
+    np.testing.assert_array_equal(out_prev, prev)  # X_{k-1} stays: the velocity changes with the position
+    np.testing.assert_array_equal(corr, 0.0)  # the mixture prior is sampled as it is
+    moved = np.any(out != new, axis=1)
+    np.testing.assert_array_equal(out[:, 2:], new[:, 2:])  # translation only
+    assert 0.2 < moved.mean() < 0.3
+    jumps = (out - new)[moved, :2]
+    assert np.std(jumps) == pytest.approx(3.0, rel=0.1)
+    assert translation_jumps(0.0, 3.0) is None and translation_jumps(0.1, 0.0) is None

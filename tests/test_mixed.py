@@ -114,6 +114,8 @@ def test_the_example_flight_settings_equal_the_flight_label():
     single = yaml.safe_load((EXAMPLES / "bouncing_ball.flight.yaml").read_text())
     assert mixed["labels"][0]["name"] == "flight"
     assert mixed["labels"][0]["dynamics"] == single["dynamics"]
+    settings = yaml.safe_load((EXAMPLES / "bouncing_ball.settings.yaml").read_text())
+    assert settings["condensation"] == single["condensation"]  # only the dynamics differ
     load_mixed(EXAMPLES / "bouncing_ball.mixed.yaml")
 
 
@@ -290,7 +292,8 @@ def ball_runs(tmp_path_factory):
     assert model["labels"][1]["bounce"]["floor"] == 318  # the sample clip's floor
     runs = {}
     for name, args in (("single", ["-c", str(EXAMPLES / "bouncing_ball.flight.yaml")]),
-                       ("mixed", ["--model", str(EXAMPLES / "bouncing_ball.mixed.yaml")])):
+                       ("mixed", ["-c", str(EXAMPLES / "bouncing_ball.settings.yaml"),
+                                  "--model", str(EXAMPLES / "bouncing_ball.mixed.yaml")])):
         res = runner.invoke(cli, ["-q", "track", str(clip), "--template", str(out / "ball.yaml"), *args,
                                   "-o", str(out / name), "--seed", "0"])
         assert res.exit_code == 0, res.output

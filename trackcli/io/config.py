@@ -169,7 +169,7 @@ class CondensationSettings:
     reacquire: bool = _f(True, "bool", "when lost, draw a share of the samples from the colour map of the whole frame (importance sampling)")
     reacquire_after: int = _f(3, "int", "frames in a row the tracker must be lost before the colour proposal is used (a short dip, e.g. the object brushing the frame's edge, is left to the motion model)", lo=1, hi=1000)
     reacquire_fraction: float = _f(0.25, "float", "share of the samples drawn from the colour proposal while lost", lo=0, lo_open=True, hi=1)
-    jump_fraction: float = _f(0.1, "float", "share of the samples whose predicted position also jumps (the motion prior is a mixture of smooth motion and abrupt moves: kicks, turns, camera shake)", lo=0, hi=1)
+    jump_fraction: float = _f(0.1, "float", "share of the samples given a jump: an impulse that moves the predicted position and changes the velocity by the same amount (the motion prior is a mixture of smooth motion and abrupt moves: kicks, turns, camera shake)", lo=0, hi=1)
     jump_size: float = _f(0.3, "float", "RMS size of such a jump, in object sizes (square root of the template's area)", lo=0, hi=10)
     search: float = _f(15.0, "float", "fixed search half-width h along each normal, px (truncated: also the penalty h^2)", lo=1, hi=200)
     sigma: float = _f(3.0, "float", "feature position noise sigma, px", lo=0, lo_open=True)

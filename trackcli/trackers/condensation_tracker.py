@@ -45,8 +45,12 @@ def translation_jumps(fraction: float, rms: float):
     abruptly (a kick, a turn of the head, a jolt of the camera).  The motion prior is taken
     as a mixture: with probability ``1 - fraction`` the AR(2) prediction, with probability
     ``fraction`` the same plus an isotropic Gaussian jump of RMS ``rms`` px per axis in
-    translation (a displacement: the previous shape moves with it, so the velocity is the
-    AR(2) model's).  Drawing from this prior needs no importance correction (zero log-weights).
+    translation.  A jump is an impulse: the previous shape stays where it was, so the jump
+    is also a change of velocity, which the AR(2) model then carries on (and damps) — an
+    object that is kicked, or turns, moves on in its new direction.  (Jumps that moved the
+    previous shape too, changing the position only, were measured on the dev table: real
+    clips P@20 0.67, against 0.76 for impulses over three seeds; `crossing` 0.42 against
+    0.89.)  Drawing from this prior needs no importance correction (zero log-weights).
     Returns None when there are no jumps.
     """
     if fraction <= 0 or rms <= 0:
@@ -55,10 +59,9 @@ def translation_jumps(fraction: float, rms: float):
     def propose(prev: np.ndarray, new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         hit = rng.random(new.shape[0]) < fraction
         jump = rms * rng.standard_normal((int(hit.sum()), 2))
-        out, out_prev = new.copy(), prev.copy()
-        out[hit, :2] += jump
-        out_prev[hit, :2] += jump  # a displacement: the velocity is the AR(2) model's
-        return out_prev, out, np.zeros(new.shape[0])
+        out = new.copy()
+        out[hit, :2] += jump  # an impulse: prev stays, so the jump is in the velocity too
+        return prev, out, np.zeros(new.shape[0])
 
     return propose
 
