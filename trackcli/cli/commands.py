@@ -683,6 +683,10 @@ def inspect_cmd(model_path, template, config, fps, as_json):
     that clip uses it: its mean, stability and modes, next to the learned spectral
     radius.  The placement settings (noise factors, coupling) are those of -c CONFIG, as
     for `track`.
+
+    A mixed-state model (kind: trackcli-mixed) is shown label by label: each label's model
+    and modes (a hand-written one needs --template for the modes), the transition matrix,
+    the mean stay in each label and the initial distribution.
     """
     import numpy as np
 
