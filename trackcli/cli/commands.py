@@ -532,10 +532,12 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
     from trackcli.io.outputs import output_dir, refuse_overwriting_inputs, write_text
     from trackcli.run.clips import check_template_frame, template_space
     from trackcli.shapes.template import load_template
-    from trackcli.run.train import learn_from_tracks, parse_shape_space, train
+    from trackcli.run.train import learn_from_tracks, parse_shape_space, read_labels, train
 
     settings = _settings(config, {"learning.cycles": cycles, **_video_overrides(fps, start, end, step)})
     tmpl = load_template(template)
+    # labelled ranges are checked before anything is tracked
+    ranges = read_labels(label_files, len(from_tracks or clips)) if label_files else None
     out_model = Path(output)
     inputs = {"--template": template, "-c/--config": config,
               **{f"--from-tracks {t}": t for t in from_tracks}, **{f"CLIP {c}": c for c in clips}}
@@ -546,8 +548,9 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
         rate = tracks_fps or settings.video.fps or 25.0
         model = learn_from_tracks(from_tracks, tmpl, settings, 1.0 / rate, shape_space, method)
         if label_files:
-            _learn_labelled(from_tracks, label_files, model, 1.0 / rate, settings, out_model, as_json,
-                            {"tracks": list(from_tracks)})
+            mixed = _learn_labelled(from_tracks, label_files, ranges, model, 1.0 / rate, settings,
+                                    {"tracks": list(from_tracks)})
+            _save_labelled(mixed, out_model, as_json)
             return
         save_model(out_model, model)
         _learn_report(model, [], out_model, as_json)
@@ -574,9 +577,8 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
                                    method=method)
             if label_files:
                 tracks = [str(r.csv) for r in records[-1].runs]
-                mixed = _learn_labelled(tracks, label_files, model, 1.0 / videos[0].fps, settings, out_model,
-                                        as_json, {"clips": list(clips), "cycles": settings.learning.cycles},
-                                        save=False)
+                mixed = _learn_labelled(tracks, label_files, ranges, model, 1.0 / videos[0].fps, settings,
+                                        {"clips": list(clips), "cycles": settings.learning.cycles})
             # written with the results: a run that fails leaves no configuration behind
             write_text(work / "config.yaml", dump_yaml(settings))
             if label_files:
@@ -589,17 +591,11 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
     _learn_report(model, records, out_model, as_json)
 
 
-def _learn_labelled(tracks, label_files, model, tau, settings, out_model, as_json, provenance, *, save=True):
-    """``learn --labels``: the mixed-state model from the final tracks (see :func:`trackcli.run.train.learn_labelled`)."""
+def _learn_labelled(tracks, label_files, ranges, model, tau, settings, provenance):
+    """``learn --labels``: the mixed-state model from the final tracks (:func:`trackcli.run.train.learn_labelled`)."""
     from trackcli.run.train import learn_labelled
 
-    if len(label_files) != len(tracks):
-        raise click.UsageError(f"--labels: give one labels file per training clip or track ({len(tracks)}), "
-                               f"got {len(label_files)}")
-    mixed = learn_labelled(tracks, label_files, model.template, model.space, tau, settings, provenance)
-    if save:
-        _save_labelled(mixed, out_model, as_json)
-    return mixed
+    return learn_labelled(tracks, label_files, model.template, model.space, tau, settings, provenance, ranges=ranges)
 
 
 def _save_labelled(mixed, out_model, as_json) -> None:
@@ -761,25 +757,21 @@ def inspect_cmd(model_path, template, config, fps, as_json):
                f"deformation {fmt(rms_d)} px")
     click.echo("  mean X         " + ", ".join(f"{n}={v:.4g}" for n, v in zip(names, dyn.mean)))
     click.echo("  modes (slowest first):")
-    click.echo("    |lambda|  damping(1/s)  freq(Hz)  decay(s)  period(s)  dominant components")
-    for x in modes:
-        dom = ", ".join(f"{names[i]} {w:.2f}" for i, w in x.dominant(3, space.H))
-        per = f"{x.period:9.3f}" if np.isfinite(x.period) else "        -"
-        dec = f"{x.decay_time:8.3f}" if np.isfinite(x.decay_time) else "     inf"
-        click.echo(f"    {x.modulus:8.4f}  {x.beta:12.3f}  {x.frequency:8.3f}  {dec}  {per}  {dom}"
-                   + ("" if x.stable else "  UNSTABLE"))
+    for row in _mode_rows(modes, space):
+        click.echo(row)
     prov = m.provenance
     if prov:
         src = prov.get("clips") or prov.get("tracks") or []
         click.echo(f"  learned from  {', '.join(map(str, src))} ({prov.get('cycles', 0)} cycle(s))")
 
 
-def _mode_rows(dyn, space) -> list[str]:
+def _mode_rows(modes, space) -> list[str]:
+    """The table of ``modes`` (AR2.modes()) that ``inspect`` prints, a line each, header first."""
     import numpy as np
 
     names = list(space.names)
     rows = ["    |lambda|  damping(1/s)  freq(Hz)  decay(s)  period(s)  dominant components"]
-    for x in dyn.modes():
+    for x in modes:
         dom = ", ".join(f"{names[i]} {w:.2f}" for i, w in x.dominant(3, space.H))
         per = f"{x.period:9.3f}" if np.isfinite(x.period) else "        -"
         dec = f"{x.decay_time:8.3f}" if np.isfinite(x.decay_time) else "     inf"
@@ -788,38 +780,19 @@ def _mode_rows(dyn, space) -> list[str]:
     return rows
 
 
-def _mixed_dynamics_for(model_path, mm, template, config, fps):
-    """The mixed model's labels on a shape-space (the template's, or the model's own), or None."""
-    import numpy as np
-
-    from trackcli.dynamics.mixed import build_dynamics
-    from trackcli.dynamics.model import place_dynamics, place_space
-    from trackcli.run.clips import template_space
+def _mixed_dynamics_for(mm, template, config, fps):
+    """The mixed model's labels on a shape-space (the template's, or the model's own), or
+    ``(None, None)`` for a hand-written model without a template."""
+    from trackcli.run.clips import mixed_dynamics_on
     from trackcli.shapes.template import load_template
 
-    settings = _settings(config, {})
-    learned = [lab.ar2.tau for lab in mm.labels if lab.ar2 is not None]
-    if template:
-        tmpl = load_template(template)
-    elif mm.space is not None:
-        tmpl = None
-    else:
+    if not template and mm.space is None:
         return None, None
+    tmpl = load_template(template) if template else None
+    learned = [lab.ar2.tau for lab in mm.labels if lab.ar2 is not None]
     rate = fps or (1.0 / learned[0] if learned else _clip_fps(tmpl.clip if tmpl is not None else None) or 25.0)
-    tau = 1.0 / rate
-    p = settings.placement
-    noise = dict(translation_noise=p.translation_noise, deformation_noise=p.deformation_noise, coupling=p.coupling,
-                 max_spectral_radius=settings.learning.max_spectral_radius)
-    if mm.space is None:
-        space = template_space(tmpl, template, settings.shape_space)
-        X0 = np.zeros(space.Nx)
-        placed = None
-    elif tmpl is not None:
-        space, X0 = place_space(mm.space, tmpl)
-        placed = [None if lab.ar2 is None else place_dynamics(lab.ar2, space, X0, tau, **noise) for lab in mm.labels]
-    else:
-        space, X0, placed = mm.space, np.zeros(mm.space.Nx), None
-    return build_dynamics(mm, space, tau, X0=X0, placed=placed), space
+    space, dynamics, _ = mixed_dynamics_on(mm, tmpl, template, _settings(config, {}), 1.0 / rate)
+    return dynamics, space
 
 
 def _clip_fps(clip) -> float | None:
@@ -843,7 +816,7 @@ def _inspect_mixed(model_path, template, config, fps, as_json: bool) -> None:
     from trackcli.dynamics.mixed import load_mixed
 
     mm = load_mixed(model_path)
-    dyn, space = _mixed_dynamics_for(model_path, mm, template, config, fps)
+    dyn, space = _mixed_dynamics_for(mm, template, config, fps)
     T = mm.T
     stay = np.diag(T)
     durations = [None if s >= 1 else float(1.0 / (1.0 - s)) for s in stay]
@@ -902,7 +875,7 @@ def _inspect_mixed(model_path, template, config, fps, as_json: bool) -> None:
             continue
         ar = dyn.models[i]
         click.echo(f"    spectral radius {ar.spectral_radius():.4f}; modes (slowest first):")
-        for row in _mode_rows(ar, space):
+        for row in _mode_rows(ar.modes(), space):
             click.echo("  " + row)
 
 
@@ -981,7 +954,7 @@ def _simulate_mixed(model_path, template, fps, n_frames, n_paths, seed, out, siz
     from trackcli.shapes.template import load_template
 
     mm = load_mixed(model_path)
-    dyn, space = _mixed_dynamics_for(model_path, mm, template, None, fps)
+    dyn, space = _mixed_dynamics_for(mm, template, None, fps)
     if dyn is None:
         raise click.UsageError(f"{model_path} is a hand-written mixed-state model: give --template")
     tmpl = load_template(template) if template else mm.template

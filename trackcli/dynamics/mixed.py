@@ -652,14 +652,6 @@ def read_label_ranges(path: str | Path) -> list[tuple[int, int, str]]:
     return out
 
 
-def label_sequence(ranges: Sequence[tuple[int, int, str]], n_frames: int, names: Sequence[str]) -> np.ndarray:
-    """Per frame the index of its label in ``names``, -1 where no range covers it."""
-    seq = np.full(n_frames, -1, dtype=np.int64)
-    for a, b, lab in ranges:
-        seq[a: min(b, n_frames - 1) + 1] = names.index(lab)
-    return seq
-
-
 def learn_mixed(sequences: Sequence[np.ndarray], labels: Sequence[np.ndarray], names: Sequence[str], tau: float,
                 *, max_spectral_radius: float = 0.99) -> tuple[list[AR2], np.ndarray, dict[str, Any]]:
     """One AR(2) per label (pooled MLE over its runs of frames) and ``T`` from the label sequences.

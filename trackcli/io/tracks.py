@@ -206,6 +206,26 @@ def read_track(path: str | Path, names: Sequence[str] | None = None) -> tuple[np
     return np.asarray(frames), np.asarray(X, dtype=float), found
 
 
+def read_columns(path: str | Path, columns: Sequence[str]) -> dict[str, np.ndarray]:
+    """The named columns of a track CSV as float arrays (empty cells NaN), by name."""
+    p, rows = _read_table(path)
+    head = rows[0]
+    missing = [c for c in columns if c not in head]
+    if missing:
+        raise InputError(f"{p}: no column(s) {', '.join(missing)}")
+    idx = [head.index(c) for c in columns]
+    values = []
+    for k, r in enumerate(rows[1:], 2):
+        if not r:
+            continue
+        try:
+            values.append([float(r[i]) if r[i] != "" else math.nan for i in idx])
+        except (ValueError, IndexError):
+            raise InputError(f"{p} line {k}: malformed row") from None
+    table = np.asarray(values, dtype=float).reshape(-1, len(idx))
+    return {c: table[:, j] for j, c in enumerate(columns)}
+
+
 def read_outlines(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Read the outline columns of a track CSV (see the module docstring), by name.
 

@@ -192,28 +192,17 @@ class Experiment:
                 f"(offsets {self.offsets}), {self.false} false"]
 
 
-def _track_columns(path: str | Path, columns: Sequence[str]) -> dict[str, np.ndarray]:
-    import csv
-
-    with open(path, newline="", encoding="utf-8") as fh:
-        reader = csv.DictReader(fh)
-        missing = [c for c in columns if c not in (reader.fieldnames or [])]
-        if missing:
-            raise DataError(f"{path}: no column(s) {', '.join(missing)}")
-        rows = list(reader)
-    return {c: np.array([float(r[c]) if r[c] != "" else np.nan for r in rows]) for c in columns}
-
-
 def run_experiment(single_csv: str | Path, mixed_csv: str | Path, truth_path: str | Path, *,
                    label: str = "bounce", radius: int = 3, png: str | Path | None = None) -> Experiment:
     """Score the single-model and the mixed-state track of one clip against its truth
     (centre error within ``radius`` frames of each true bounce; detections of the ``label``
     posterior), and draw :func:`figure` into ``png`` when given."""
+    from trackcli.io.tracks import read_columns
     from trackcli.io.truth import load_truth
 
     truth = load_truth(truth_path)
-    s = _track_columns(single_csv, ["frame", "cx", "cy"])
-    m = _track_columns(mixed_csv, ["frame", "cx", "cy", f"p_{label}"])
+    s = read_columns(single_csv, ["frame", "cx", "cy"])
+    m = read_columns(mixed_csv, ["frame", "cx", "cy", f"p_{label}"])
     frames = m["frame"].astype(np.int64)
     if not np.array_equal(frames, s["frame"].astype(np.int64)):
         raise DataError(f"{single_csv} and {mixed_csv} cover different frames")

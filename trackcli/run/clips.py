@@ -429,10 +429,7 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
         return mixed_setup(model, template, settings, video, starts_at_template=starts_at_template)
     if model:
         m = load_model(model)
-        noise = {"translation_noise": settings.placement.translation_noise,
-                 "deformation_noise": settings.placement.deformation_noise,
-                 "coupling": settings.placement.coupling,
-                 "max_spectral_radius": settings.learning.max_spectral_radius}
+        noise = placement_noise(settings)
         if template:
             tmpl = load_template(template)
             check_template_frame(tmpl, video)
@@ -452,49 +449,60 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
                          f"template {template} (hand-set dynamics)")
 
 
+def placement_noise(settings: Settings) -> dict[str, Any]:
+    """The keyword arguments of :func:`trackcli.dynamics.model.place_dynamics` that the settings give."""
+    p = settings.placement
+    return {"translation_noise": p.translation_noise, "deformation_noise": p.deformation_noise,
+            "coupling": p.coupling, "max_spectral_radius": settings.learning.max_spectral_radius}
+
+
+def mixed_dynamics_on(mm: Any, template: Any, template_path: str | os.PathLike[str] | None, settings: Settings,
+                      tau: float) -> tuple[ShapeSpace, Any, np.ndarray]:
+    """``(space, dynamics, X0)`` of a mixed-state model (:mod:`trackcli.dynamics.mixed`).
+
+    Hand-set labels are built on the template's shape-space as the ``dynamics`` settings are;
+    learned labels (a model from ``learn --labels``, which holds its own template and
+    shape-space) are placed by ``template`` as a single learned model is, or without one
+    start where their own template was drawn.  A hand-written model needs a template.
+    """
+    from trackcli.dynamics.mixed import build_dynamics
+    from trackcli.dynamics.model import place_dynamics, place_space
+
+    if mm.space is None:
+        if template is None:
+            raise ConfigError("a hand-written mixed-state model has no template of its own; give --template")
+        space = template_space(template, str(template_path), settings.shape_space)
+        X0 = np.zeros(space.Nx)
+        return space, build_dynamics(mm, space, tau, X0=X0), X0
+    if template is not None:
+        space, X0 = place_space(mm.space, template)
+        at = X0
+    else:
+        space, X0, at = mm.space, np.zeros(mm.space.Nx), None
+    noise = placement_noise(settings)
+    placed = [None if lab.ar2 is None else place_dynamics(lab.ar2, space, at, tau, **noise) for lab in mm.labels]
+    return space, build_dynamics(mm, space, tau, X0=X0, placed=placed), X0
+
+
 def mixed_setup(model: str | os.PathLike[str], template: str | os.PathLike[str] | None, settings: Settings,
                 video: Any, *, starts_at_template: bool = True) -> TrackingSetup:
-    """A mixed-state model (:mod:`trackcli.dynamics.mixed`) on ``video``.
-
-    Its labels' dynamics are built on the template's shape-space: hand-set labels as the
-    ``dynamics`` settings are; learned labels (a model from ``learn --labels``, which holds
-    its own template and shape-space) placed by the template as a single learned model is.
-    Without ``template`` a learned mixed model starts where its own template was drawn;
-    a hand-written one needs a template.
-    """
-    from trackcli.dynamics.mixed import build_dynamics, load_mixed
-    from trackcli.dynamics.model import place_dynamics, place_space
+    """A mixed-state model on ``video`` (see :func:`mixed_dynamics_on`)."""
+    from trackcli.dynamics.mixed import load_mixed
     from trackcli.shapes.template import load_template
 
     mm = load_mixed(model)
-    tau = 1.0 / video.fps
     tmpl = None
     if template:
         tmpl = load_template(template)
         check_template_frame(tmpl, video)
         if starts_at_template:
             warn_if_drawn_elsewhere(tmpl, template, video)
-    if mm.space is None:
-        if tmpl is None:
-            raise ConfigError(f"{model}: a hand-written mixed-state model has no template of its own; "
-                              "give --template")
-        space = template_space(tmpl, str(template), settings.shape_space)
-        X0 = np.zeros(space.Nx)
-        source = f"mixed-state model {model} ({', '.join(mm.names)}) on template {template}"
-        return TrackingSetup(space, build_dynamics(mm, space, tau, X0=X0), X0, source)
-    noise = {"translation_noise": settings.placement.translation_noise,
-             "deformation_noise": settings.placement.deformation_noise,
-             "coupling": settings.placement.coupling,
-             "max_spectral_radius": settings.learning.max_spectral_radius}
-    if tmpl is not None:
-        space, X0 = place_space(mm.space, tmpl)
-        placed = [None if lab.ar2 is None else place_dynamics(lab.ar2, space, X0, tau, **noise) for lab in mm.labels]
-        source = f"mixed-state model {model} ({', '.join(mm.names)}) placed by template {template}"
-    else:
-        space, X0 = mm.space, np.zeros(mm.space.Nx)
-        placed = [None if lab.ar2 is None else place_dynamics(lab.ar2, space, None, tau, **noise) for lab in mm.labels]
-        source = f"mixed-state model {model} ({', '.join(mm.names)})"
-    return TrackingSetup(space, build_dynamics(mm, space, tau, X0=X0, placed=placed), X0, source)
+    try:
+        space, dynamics, X0 = mixed_dynamics_on(mm, tmpl, template, settings, 1.0 / video.fps)
+    except ConfigError as exc:
+        raise ConfigError(f"{model}: {exc}") from None
+    where = f" placed by template {template}" if template else ""
+    return TrackingSetup(space, dynamics, X0, f"mixed-state model {model} ({', '.join(mm.names)}){where}")
 
 
 def output_base(outdir: str | os.PathLike[str], name: str, tracker: str) -> Path:

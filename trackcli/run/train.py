@@ -314,8 +314,24 @@ def learn_from_tracks(track_paths: Sequence[str], template: Template, settings: 
     return Model(template, space, dynamics, settings, provenance)
 
 
+def read_labels(label_files: Sequence[str | Path], n_tracks: int) -> list[list[tuple[int, int, str]]]:
+    """The labelled ranges of ``learn --labels``, one file per training clip or track, checked
+    before any tracking (:func:`trackcli.dynamics.mixed.read_label_ranges`)."""
+    from trackcli.dynamics.mixed import read_label_ranges
+
+    if len(label_files) != n_tracks:
+        raise ConfigError(f"--labels: give one labels file per training clip or track ({n_tracks}), "
+                          f"got {len(label_files)}")
+    ranges = [read_label_ranges(p) for p in label_files]
+    names = {lab for rs in ranges for _, _, lab in rs}
+    if len(names) < 2:
+        raise DataError(f"--labels: a mixed-state model needs at least two labels, the files name {sorted(names)}")
+    return ranges
+
+
 def learn_labelled(track_paths: Sequence[str | Path], label_files: Sequence[str | Path], template: Template,
-                   space: ShapeSpace, tau: float, settings: Settings, provenance: dict[str, Any] | None = None) -> Any:
+                   space: ShapeSpace, tau: float, settings: Settings, provenance: dict[str, Any] | None = None,
+                   ranges: Sequence[Sequence[tuple[int, int, str]]] | None = None) -> Any:
     """A mixed-state model from tracks and their labelled frame ranges (``learn --labels``).
 
     ``label_files[i]`` (``start,end,label`` rows, see
@@ -325,20 +341,13 @@ def learn_labelled(track_paths: Sequence[str | Path], label_files: Sequence[str 
     its runs of frames pooled over the tracks, and ``T`` is counted from the label sequences
     (:func:`trackcli.dynamics.mixed.learn_mixed`).  Returns a
     :class:`~trackcli.dynamics.mixed.MixedModel` holding ``template`` and ``space``.
+    ``ranges``: the files already read by :func:`read_labels`.
     """
-    from trackcli.dynamics.mixed import LabelSpec, MixedModel, learn_mixed, read_label_ranges
+    from trackcli.dynamics.mixed import LabelSpec, MixedModel, learn_mixed
 
-    if len(label_files) != len(track_paths):
-        raise ConfigError(f"--labels: give one labels file per training clip or track ({len(track_paths)}), "
-                          f"got {len(label_files)}")
-    ranges = [read_label_ranges(p) for p in label_files]
-    names: list[str] = []
-    for rs in ranges:
-        for _, _, lab in rs:
-            if lab not in names:
-                names.append(lab)
-    if len(names) < 2:
-        raise DataError(f"--labels: a mixed-state model needs at least two labels, the files name {names}")
+    if ranges is None:
+        ranges = read_labels(label_files, len(track_paths))
+    names = list(dict.fromkeys(lab for rs in ranges for _, _, lab in rs))  # in order of first mention
     sequences, label_seqs = [], []
     for path, rs, lf in zip(track_paths, ranges, label_files):
         frames, X, _ = read_track(path, space.names)
@@ -348,8 +357,7 @@ def learn_labelled(track_paths: Sequence[str | Path], label_files: Sequence[str 
             seq[(frames >= a) & (frames <= b)] = names.index(lab)
         if not (seq >= 0).any():
             raise DataError(f"{lf}: no range covers a frame of {path} (frames {int(frames[0])}-{int(frames[-1])})")
-        if lost is not None:
-            seq[lost] = -1
+        seq[lost] = -1
         sequences.append(X)
         label_seqs.append(seq)
     models, T, report = learn_mixed(sequences, label_seqs, names, tau,
