@@ -2,21 +2,24 @@
 
 One step = select by weight + predict (AR(2), planar affine shape-space, Nx = 6) + curve
 evaluation (M points and normals of a closed quadratic B-spline with 12 control points, as
-a plain matrix product) + the clutter log-likelihood of every sample (AC eq 12.2, h = 15 px).
-The feature image (one blur per frame) is timed on its own, and so is decoding the same
-frames from a short video written with OpenCV.  Everything runs on one core.  The frames
+a plain matrix product) + the log-likelihood of every sample (h = 15 px): by default the
+contour discriminant with the colour term (the tracker's default observation model,
+``trackcli.observe.discriminant``, appearance learned on the first frame), or with
+``--likelihood clutter`` the clutter model of AC eq 12.2.  The feature image (one blur per
+frame) and the per-frame images of the discriminant (colour map, clutter density) are timed
+on their own, and so is decoding the same frames from a short video written with OpenCV.  Everything runs on one core.  The frames
 have dense clutter (about 1.3 features above threshold per 31-px normal segment), and the
 tracking error of the weighted mean is printed as a check that the filter tracks.
 
 The table gives, per N: the median step time, its mean, and its parts — selection and
 prediction, curve evaluation, and the likelihood (sampling 34 points along each of N x M
-normals with cv2.remap is about a third of the likelihood; marking maxima and handling the
-features found is the rest).  ``/N=1000`` is the cost relative to N = 1000.
+normals with cv2.remap, then finding the maxima and summing over them).  ``/N=1000`` is the cost relative to N = 1000.
 
 Usage::
 
     python bench/bench_condensation.py [--frames 40] [--sizes 100,300,1000,3000,10000]
                                        [--normals 24] [--curves matrix|trackcli] [--repeat 3]
+                                       [--threads 1,2] [--likelihood discriminant|clutter]
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from trackcli.trackers import condensation  # noqa: E402
-from trackcli.observe import measure  # noqa: E402
+from trackcli.observe import discriminant, measure  # noqa: E402
 
 WIDTH, HEIGHT = 640, 480
 TAU = 0.04
@@ -186,7 +189,27 @@ def time_decode(frames: list[np.ndarray], workdir: Path) -> dict[str, float]:
     return out
 
 
-def run(n: int, frames, fimgs, model, dyn, n_frames: int, normals: int, seed: int, threads: int = 1) -> dict[str, float]:
+def discriminant_model(frames, fimgs, model):
+    """The default observation model: appearance learned on frame 0, per-frame evidence.
+
+    Returns ``(score(k, pts, nrm), ms per frame for the evidence)``.
+    """
+    x0 = np.zeros((1, 6))
+    x0[0, :2] = TRUTH[0] - (320, 240)
+    pts0, nrm0 = (a[0] for a in model.evaluate(x0))
+    app = discriminant.learn_appearance(frames[0], fimgs[0], pts0, nrm0, pts0, h=15.0, sigma=3.0, threshold=8.0)
+    t0 = time.perf_counter()
+    evs = [discriminant.evidence(app, f, g, TRUTH[k], 8.0) for k, (f, g) in enumerate(zip(frames, fimgs))]
+    t_ev = 1e3 * (time.perf_counter() - t0) / len(frames)
+
+    def score(k: int, pts: np.ndarray, nrm: np.ndarray) -> np.ndarray:
+        return discriminant.score(app, evs[k], pts, nrm, h=15.0, sigma=3.0, threshold=8.0, miss=0.1, colour_weight=3.0)
+
+    return score, t_ev
+
+
+def run(n: int, frames, fimgs, model, dyn, n_frames: int, normals: int, seed: int, threads: int = 1,
+        score=None) -> dict[str, float]:
     rng = np.random.default_rng(seed)
     spent = {"curves": 0.0, "likelihood": 0.0}
 
@@ -194,7 +217,10 @@ def run(n: int, frames, fimgs, model, dyn, n_frames: int, normals: int, seed: in
         t0 = time.perf_counter()
         pts, nrm = model.evaluate(x)
         t1 = time.perf_counter()
-        ll = measure.log_likelihood(fimgs[state["k"]], pts, nrm, h=15.0, sigma=3.0, alpha=0.02, threshold=8.0)
+        if score is not None:
+            ll = score(state["k"], pts, nrm)
+        else:
+            ll = measure.log_likelihood(fimgs[state["k"]], pts, nrm, h=15.0, sigma=3.0, alpha=0.02, threshold=8.0)
         spent["curves"] += t1 - t0
         spent["likelihood"] += time.perf_counter() - t1
         return ll
@@ -238,6 +264,8 @@ def main() -> None:
                         help="thread counts of the weighting step to compare (comma separated)")
     parser.add_argument("--curves", choices=("matrix", "trackcli"), default="matrix",
                         help="curve evaluation: this script's matrix product, or trackcli's spline + shape-space")
+    parser.add_argument("--likelihood", choices=("discriminant", "clutter"), default="discriminant",
+                        help="observation model: the default contour discriminant with colour, or AC eq 12.2")
     args = parser.parse_args()
     cv2.setNumThreads(1)
 
@@ -251,11 +279,15 @@ def main() -> None:
     build = curve_model if args.curves == "matrix" else trackcli_curve_model
     model = build((320.0, 240.0), (40.0, 55.0), args.normals)
     dyn = dynamics()
+    score, t_ev = discriminant_model(frames, fimgs, model) if args.likelihood == "discriminant" else (None, 0.0)
     with tempfile.TemporaryDirectory() as tmp:
         decode = time_decode(frames, Path(tmp))
 
     print(f"curves: {args.curves}; M = {args.normals} normals, h = 15 px, Nx = 6, {args.frames} frames of {WIDTH}x{HEIGHT}")
+    print(f"likelihood: {args.likelihood}")
     print(f"feature image (grey + blur sigma {np.hypot(1.0, 1.5):.2f}): {t_fimg:.2f} ms/frame")
+    if score is not None:
+        print(f"discriminant's per-frame evidence (colour map, clutter density): {t_ev:.2f} ms/frame")
     print("decode: " + ", ".join(f"{k} {v:.2f} ms/frame" for k, v in decode.items()))
     print()
     print(f"load average {os.getloadavg()[0]:.2f}; with several threads the curve and likelihood columns are "
@@ -271,7 +303,7 @@ def main() -> None:
     for _ in range(args.repeat):
         for t in thread_counts:
             for n in sizes:
-                r = run(n, frames, fimgs, model, dyn, args.frames, args.normals, seed=n, threads=t)
+                r = run(n, frames, fimgs, model, dyn, args.frames, args.normals, seed=n, threads=t, score=score)
                 if (t, n) not in rows or r["median"] < rows[t, n]["median"]:
                     rows[t, n] = r
     for t in thread_counts:

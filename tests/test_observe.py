@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import cv2
 import numpy as np
 import pytest
 
+from trackcli.errors import DataError
 from trackcli.observe import measure
 from trackcli.observe import discriminant as observe
 from trackcli.io.config import CondensationSettings, DynamicsSettings, MeasurementSettings, SubspaceDynamics
@@ -225,3 +227,51 @@ def test_presence_reference_is_the_templates_own_score():
     assert conf > 0.9 and log_d > 0
     poly, _, _ = contour_summary(space, np.zeros(4))
     assert judge.app.size == pytest.approx(math.sqrt(abs(cv2.contourArea(poly.astype(np.float32)))), rel=1e-6)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_compiled_per_normal_agrees_with_the_numpy_reference(seed):
+    """The kernel and the numpy version see the same features: curves on the object, on
+    texture, across and beyond the frame's edge, rotated (mixed polarities) and far away."""
+    rng = np.random.default_rng(seed)
+    img = object_frame(rng)
+    space = ellipse_space(240, 120, 30, 40)
+    judge, fimg, sampler = presence_for(img, space)
+    # normals of a learned polarity (only features of that sign count), of the opposite one
+    # (no feature of the object's edge counts there) and of either sign
+    pol = judge.app.polarity.copy()
+    assert (pol != 0).all()
+    pol[::3] = 0
+    pol[1::6] *= -1
+    app = dataclasses.replace(judge.app, polarity=pol)
+    ev = judge.evidence(img, fimg, space.origin)
+    n = 300
+    X = np.zeros((n, 4))
+    X[:, :2] = rng.normal(0, 60, (n, 2))
+    X[:, 2:] = rng.normal(0, 0.3, (n, 2))
+    X[:40, 0] = rng.uniform(50, 110, 40)  # across the right edge
+    X[40:80, 1] = -rng.uniform(70, 150, 40)  # across the top edge
+    X[80:85, 0] = rng.uniform(1e3, 1e6, 5)  # far outside
+    pts, nrm = space.points_normals(X, sampler)
+    for h in (judge.h, 4.3):
+        got = observe.per_normal(app, ev, pts, nrm, h=h, sigma=judge.sigma, threshold=judge.threshold,
+                                 miss=judge.miss)
+        want = observe.per_normal_reference(app, ev, pts, nrm, h=h, sigma=judge.sigma,
+                                            threshold=judge.threshold, miss=judge.miss)
+        for g, w in zip(got, want):
+            assert g.shape == w.shape == (n, M)
+            np.testing.assert_allclose(g, w, rtol=1e-5, atol=1e-5)
+
+
+def test_compiled_per_normal_rejects_non_finite_curves():
+    rng = np.random.default_rng(0)
+    img = object_frame(rng)
+    space = ellipse_space(240, 120, 30, 40)
+    judge, fimg, sampler = presence_for(img, space)
+    ev = judge.evidence(img, fimg, space.origin)
+    pts, nrm = space.points_normals(np.zeros((2, 4)), sampler)
+    pts = pts.copy()
+    pts[1, 3, 0] = np.nan
+    with pytest.raises(DataError, match="finite"):
+        observe.per_normal(judge.app, ev, pts, nrm, h=judge.h, sigma=judge.sigma, threshold=judge.threshold,
+                           miss=judge.miss)

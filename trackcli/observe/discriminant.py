@@ -71,10 +71,11 @@ import cv2
 import numpy as np
 
 from trackcli.errors import DataError
-from trackcli.observe.measure import _as_image, _as_normals, _remap_rows, _scan_chunks
+from trackcli.observe.kernels import discriminant_profiles
+from trackcli.observe.measure import _as_image, _as_normals, _profile_offsets, _remap_rows, _scan_chunks
 
 __all__ = ["Appearance", "FrameEvidence", "colour_peaks", "confidence", "evidence", "feature_density", "hsv_bins",
-           "learn_appearance", "per_normal", "presence", "reacquisition_proposal", "score"]
+           "learn_appearance", "per_normal", "per_normal_reference", "presence", "reacquisition_proposal", "score"]
 
 #: HSV histogram bins (hue, saturation, value).
 HIST_BINS = (8, 8, 4)
@@ -84,6 +85,8 @@ COLOUR_CLIP = 3.0
 MIN_DENSITY = 0.002
 # Offsets of the colour samples along a normal, as fractions of the object's size.
 _COLOUR_FRACTIONS = (0.04, 0.08, 0.13, 0.2)
+# Normals per call of the compiled kernel (profiles of 2048 normals stay in the L2 cache).
+_KERNEL_CHUNK = 4096
 
 
 @dataclass(frozen=True, eq=False)
@@ -260,9 +263,59 @@ def evidence(app: Appearance, frame_bgr: np.ndarray, fimg: np.ndarray, centre: n
                          density=feature_density(fimg, centre, app.size, threshold))
 
 
+def _colour_profile(app: Appearance) -> tuple[np.ndarray, np.ndarray]:
+    """Offsets of the colour samples along a normal (inside, then outside) and their weights.
+
+    ``c_i = (mean inside L - mean outside L) / 2`` is the weighted sum of the samples.
+    """
+    offs = app.colour_offsets
+    nk = offs.size
+    u = np.concatenate([-offs[::-1], offs]).astype(np.float32)
+    weights = np.concatenate([np.full(nk, 0.5 / nk), np.full(nk, -0.5 / nk)]).astype(np.float32)
+    return u, weights
+
+
 def per_normal(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float,
                sigma: float, threshold: float, miss: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(log D_i, c_i)`` of every normal of every curve, each of the leading shape (..., M)."""
+    """``(log D_i, c_i)`` of every normal of every curve, each of the leading shape (..., M).
+
+    The profiles along the normals are read with ``cv2.remap`` and reduced by the compiled
+    kernel :func:`trackcli.observe.kernels.discriminant_profiles` (one pass per normal, the
+    GIL released); :func:`per_normal_reference` is the same computation in numpy.
+    """
+    pts, nrm, lead = _as_normals(points, normals)
+    m = app.polarity.size
+    if not lead or lead[-1] != m:
+        raise DataError(f"points: expected shape (..., {m}, 2) for {m} normals, got {lead + (2,)}")
+    k_total = pts.shape[0]
+    # per normal of the curve: the densities of features of the accepted polarity, outside and inside
+    half = np.where(app.polarity != 0, 0.5, 1.0)
+    lam_out = ev.density * half
+    lam_in = app.lambda_in * half
+    c = (1.0 - miss) / (math.sqrt(2.0 * math.pi) * sigma)
+    consts = (np.ascontiguousarray(app.polarity, np.int8), int(math.ceil(float(h))), np.float32(h),
+              np.float32(threshold), np.float32(-0.5 / sigma**2), (c / lam_in).astype(np.float32),
+              (c / lam_out).astype(np.float32), h * (lam_out - lam_in), np.log(lam_in / lam_out), float(miss))
+    u_edge = _profile_offsets(consts[1])
+    u_colour, weights = _colour_profile(app)
+    cmap = _as_image(ev.cmap)
+    y_max, x_max = np.float32(ev.fimg.shape[0] - 1), np.float32(ev.fimg.shape[1] - 1)
+    log_d = np.empty(k_total)
+    colour = np.empty(k_total, np.float32)
+    for k0 in range(0, k_total, _KERNEL_CHUNK):
+        k1 = min(k0 + _KERNEL_CHUNK, k_total)
+        p = np.ascontiguousarray(pts[k0:k1], dtype=np.float32)
+        n = np.ascontiguousarray(nrm[k0:k1], dtype=np.float32)
+        # _remap_rows checks that the coordinates are finite
+        prof = _remap_rows(ev.fimg, p, n, u_edge)
+        cprof = _remap_rows(cmap, p, n, u_colour, outside=0.0)
+        discriminant_profiles(prof, cprof, p, n, k0 % m, *consts, weights, x_max, y_max, log_d[k0:k1], colour[k0:k1])
+    return log_d.reshape(lead), colour.astype(np.float64).reshape(lead)
+
+
+def per_normal_reference(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float,
+                         sigma: float, threshold: float, miss: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`per_normal` written with numpy and OpenCV (the reference the kernel is tested against)."""
     pts, nrm, lead = _as_normals(points, normals)
     m = app.polarity.size
     if not lead or lead[-1] != m:
@@ -293,13 +346,9 @@ def per_normal(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: 
     # colour: the log-ratio map sampled inside (-offsets) and outside (+offsets) every normal;
     # beyond the frame's edge it reads 0 (no evidence either way): replicating the border
     # would let an outline that has left the frame score the colours of the frame's edge
-    offs = app.colour_offsets
-    u = np.concatenate([-offs[::-1], offs])
+    u, weights = _colour_profile(app)
     colour = np.empty(k_total)
     step = 8192
-    nk = offs.size
-    # (mean inside - mean outside) / 2 as one product with the profile
-    weights = np.concatenate([np.full(nk, 0.5 / nk), np.full(nk, -0.5 / nk)]).astype(np.float32)
     for k0 in range(0, k_total, step):
         k1 = min(k0 + step, k_total)
         colour[k0:k1] = _remap_rows(ev.cmap, pts[k0:k1], nrm[k0:k1], u, outside=0.0) @ weights
