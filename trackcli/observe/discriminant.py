@@ -71,8 +71,8 @@ import cv2
 import numpy as np
 
 from trackcli.errors import DataError
-from trackcli.observe.kernels import discriminant_profiles
-from trackcli.observe.measure import _as_image, _as_normals, _profile_offsets, _remap_rows, _scan_chunks
+from trackcli.observe.kernels import discriminant_normals
+from trackcli.observe.measure import _as_image, _as_normals, _remap_rows, _scan_chunks
 
 __all__ = ["Appearance", "FrameEvidence", "colour_peaks", "confidence", "evidence", "feature_density", "hsv_bins",
            "learn_appearance", "per_normal", "per_normal_reference", "presence", "reacquisition_proposal", "score"]
@@ -85,8 +85,6 @@ COLOUR_CLIP = 3.0
 MIN_DENSITY = 0.002
 # Offsets of the colour samples along a normal, as fractions of the object's size.
 _COLOUR_FRACTIONS = (0.04, 0.08, 0.13, 0.2)
-# Normals per call of the compiled kernel (profiles of 2048 normals stay in the L2 cache).
-_KERNEL_CHUNK = 4096
 
 
 @dataclass(frozen=True, eq=False)
@@ -279,14 +277,18 @@ def per_normal(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: 
                sigma: float, threshold: float, miss: float) -> tuple[np.ndarray, np.ndarray]:
     """``(log D_i, c_i)`` of every normal of every curve, each of the leading shape (..., M).
 
-    The profiles along the normals are read with ``cv2.remap`` and reduced by the compiled
-    kernel :func:`trackcli.observe.kernels.discriminant_profiles` (one pass per normal, the
-    GIL released); :func:`per_normal_reference` is the same computation in numpy.
+    Computed by the compiled kernel :func:`trackcli.observe.kernels.discriminant_normals`
+    (one pass per normal, the GIL released); :func:`per_normal_reference` is the same
+    computation with numpy and ``cv2.remap``.
     """
     pts, nrm, lead = _as_normals(points, normals)
     m = app.polarity.size
     if not lead or lead[-1] != m:
         raise DataError(f"points: expected shape (..., {m}, 2) for {m} normals, got {lead + (2,)}")
+    pts = np.ascontiguousarray(pts, dtype=np.float32)
+    nrm = np.ascontiguousarray(nrm, dtype=np.float32)
+    if not (np.isfinite(pts).all() and np.isfinite(nrm).all()):
+        raise DataError("points and normals must be finite (and within float32 range); got NaN or infinite coordinates")
     k_total = pts.shape[0]
     # per normal of the curve: the densities of features of the accepted polarity, outside and inside
     half = np.where(app.polarity != 0, 0.5, 1.0)
@@ -296,20 +298,13 @@ def per_normal(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: 
     consts = (np.ascontiguousarray(app.polarity, np.int8), int(math.ceil(float(h))), np.float32(h),
               np.float32(threshold), np.float32(-0.5 / sigma**2), (c / lam_in).astype(np.float32),
               (c / lam_out).astype(np.float32), h * (lam_out - lam_in), np.log(lam_in / lam_out), float(miss))
-    u_edge = _profile_offsets(consts[1])
     u_colour, weights = _colour_profile(app)
     cmap = _as_image(ev.cmap)
-    y_max, x_max = np.float32(ev.fimg.shape[0] - 1), np.float32(ev.fimg.shape[1] - 1)
+    if cmap.shape != ev.fimg.shape:
+        raise DataError(f"colour map: expected the feature image's shape {ev.fimg.shape}, got {cmap.shape}")
     log_d = np.empty(k_total)
     colour = np.empty(k_total, np.float32)
-    for k0 in range(0, k_total, _KERNEL_CHUNK):
-        k1 = min(k0 + _KERNEL_CHUNK, k_total)
-        p = np.ascontiguousarray(pts[k0:k1], dtype=np.float32)
-        n = np.ascontiguousarray(nrm[k0:k1], dtype=np.float32)
-        # _remap_rows checks that the coordinates are finite
-        prof = _remap_rows(ev.fimg, p, n, u_edge)
-        cprof = _remap_rows(cmap, p, n, u_colour, outside=0.0)
-        discriminant_profiles(prof, cprof, p, n, k0 % m, *consts, weights, x_max, y_max, log_d[k0:k1], colour[k0:k1])
+    discriminant_normals(ev.fimg, cmap, pts, nrm, 0, *consts, u_colour, weights, log_d, colour)
     return log_d.reshape(lead), colour.astype(np.float64).reshape(lead)
 
 

@@ -1,18 +1,22 @@
 """Compiled kernel of the default observation model (numba).
 
 :func:`trackcli.observe.discriminant.per_normal` reads, for every normal of every sample
-curve, about 2 h + 4 bilinear samples of the feature image and a few of the colour map
-(``cv2.remap``, vectorised, the GIL released), then finds the local maxima of the intensity
-difference along each profile and sums a Gaussian over them.  Written with numpy that second
-part is a dozen short array passes per chunk of normals, each holding the GIL in between, so
-that the interpreter and memory traffic, not the arithmetic, set the pace and a second thread
-gains little.  :func:`discriminant_profiles` does it in one pass per normal, in registers,
-with the GIL released; the thread pool of :func:`trackcli.trackers.condensation.weigh` then
-scores its blocks of samples on separate cores.
+curve, 2 h + 4 bilinear samples of the feature image and a few of the colour map, finds the
+local maxima of the intensity difference along the profile and sums a Gaussian over them.
+Written with numpy and OpenCV this is ``cv2.remap`` (which needs two coordinate maps the size
+of its output) and a dozen short array passes per chunk of normals; the maps and profiles
+stream through memory, and the interpreter holds the GIL between the passes, so that a
+second thread gains little.  :func:`discriminant_normals` does the whole computation of one
+normal in one pass, with the profile in a small buffer, and releases the GIL: the thread
+pool of :func:`trackcli.trackers.condensation.weigh` then scores its blocks of samples on
+separate cores.
 
-The kernel computes what the numpy version computes, in the same float32 operations (sums
-in float64); :func:`trackcli.observe.discriminant.per_normal_reference` is kept as the
-reference it is tested against.  The compiled code is cached next to this file
+Bilinear sampling is that of ``cv2.remap`` with ``INTER_LINEAR`` (OpenCV 5 interpolates at the
+exact float position): border pixels replicated for the feature image, 0 outside the colour
+map.  Along normals whose whole segment lies inside the image (nearly all) the profile is
+read without border tests, the coordinates first and the pixels in a second loop.
+The numpy version, :func:`trackcli.observe.discriminant.per_normal_reference`, is kept as the
+reference the kernel is tested against.  The compiled code is cached next to this file
 (``cache=True``): only the first run after installation compiles it (a few seconds).
 """
 
@@ -21,28 +25,71 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, uintp
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bilinear_replicate(flat, w, h, x, y):  # pragma: no cover - compiled
+    """The image (flattened, ``w`` x ``h``) at ``(x, y)``, border pixels replicated."""
+    # beyond a pixel outside the image the value no longer changes; clamping first keeps the
+    # integer conversion defined for any finite coordinate
+    x = min(max(x, np.float32(-2.0)), np.float32(w + 1))
+    y = min(max(y, np.float32(-2.0)), np.float32(h + 1))
+    ix = np.int32(x + np.float32(3.0)) - np.int32(3)  # floor: the argument is positive
+    iy = np.int32(y + np.float32(3.0)) - np.int32(3)
+    ax = x - np.float32(ix)
+    ay = y - np.float32(iy)
+    x0 = min(max(ix, 0), w - 1)
+    x1 = min(max(ix + 1, 0), w - 1)
+    y0 = min(max(iy, 0), h - 1) * w
+    y1 = min(max(iy + 1, 0), h - 1) * w
+    one = np.float32(1.0)
+    top = flat[y0 + x0] * (one - ax) + flat[y0 + x1] * ax
+    bottom = flat[y1 + x0] * (one - ax) + flat[y1 + x1] * ax
+    return top * (one - ay) + bottom * ay
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bilinear_zero(flat, w, h, x, y):  # pragma: no cover - compiled
+    """The image (flattened, ``w`` x ``h``) at ``(x, y)``, 0 outside it."""
+    x = min(max(x, np.float32(-3.0)), np.float32(w + 2))
+    y = min(max(y, np.float32(-3.0)), np.float32(h + 2))
+    ix = np.int32(x + np.float32(4.0)) - np.int32(4)
+    iy = np.int32(y + np.float32(4.0)) - np.int32(4)
+    ax = x - np.float32(ix)
+    ay = y - np.float32(iy)
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
+    in_x0 = 0 <= ix < w
+    in_x1 = 0 <= ix + 1 < w
+    in_y0 = 0 <= iy < h
+    in_y1 = 0 <= iy + 1 < h
+    v00 = flat[iy * w + ix] if in_x0 and in_y0 else zero
+    v01 = flat[iy * w + ix + 1] if in_x1 and in_y0 else zero
+    v10 = flat[(iy + 1) * w + ix] if in_x0 and in_y1 else zero
+    v11 = flat[(iy + 1) * w + ix + 1] if in_x1 and in_y1 else zero
+    top = v00 * (one - ax) + v01 * ax
+    bottom = v10 * (one - ax) + v11 * ax
+    return top * (one - ay) + bottom * ay
 
 
 @njit(cache=True, nogil=True)
-def discriminant_profiles(prof, cprof, pts, nrm, first, polarity, half, limit, threshold, scale, inv_in, inv_out,
-                          base, log_ratio_in, miss, colour_w, x_max, y_max, log_d, colour):  # pragma: no cover
-    """``log D_i`` and the colour term ``c_i`` of K normals from their profiles, into ``log_d``, ``colour`` (K,).
+def discriminant_normals(fimg, cmap, pts, nrm, first, polarity, half, limit, threshold, scale, inv_in, inv_out,
+                         base, log_ratio_in, miss, colour_u, colour_w, log_d, colour):  # pragma: no cover - compiled
+    """``log D_i`` and the colour term ``c_i`` of K normals, written into ``log_d`` and ``colour`` (K,).
 
-    Parameters
+    Parameters (arrays C-contiguous)
     ----------
-    prof : float32 (K, 2 half + 4)
-        The feature image along each normal at ``u = -(half + 1.5), ..., half + 1.5``.
-    cprof : float32 (K, C)
-        The colour log-ratio map at the colour offsets; ``c_i`` is its product with ``colour_w``.
+    fimg, cmap : float32 (H, W)
+        Feature image and colour log-ratio map.
     pts, nrm : float32 (K, 2)
-        Base points and unit outward normals (for the test that a feature lies in the image).
+        Base points and unit outward normals, finite.
     first : int
         Normal ``k`` is normal ``(first + k) % M`` of its curve.
     polarity : int8 (M,)
         Accepted sign of the intensity difference per normal of the curve (0 = either).
     half : int
-        ``ceil(limit)``.
+        ``ceil(limit)``; the profile is read at ``u = -(half + 1.5), ..., half + 1.5``.
     limit, threshold, scale : float32
         Search half-width h (features with ``|nu| <= h``), contrast threshold, ``-1 / (2 sigma^2)``.
     inv_in, inv_out : float32 (M,)
@@ -51,24 +98,71 @@ def discriminant_profiles(prof, cprof, pts, nrm, first, polarity, half, limit, t
         ``h (lambda - lambda_in)`` and ``log(lambda_in / lambda)`` per normal of the curve.
     miss : float64
         The miss probability q.
-    x_max, y_max : float32
-        The image's last column and row.
+    colour_u, colour_w : float32 (C,)
+        Offsets of the colour samples along the normal (ascending) and their weights:
+        ``c_i`` is the weighted sum of the colour map there.
     """
-    k_total = prof.shape[0]
+    h_img, w_img = fimg.shape
+    flat = fimg.reshape(-1)
+    cflat = cmap.reshape(-1)
+    k_total = pts.shape[0]
     m = polarity.shape[0]
-    n_diff = prof.shape[1] - 1
-    n_colour = cprof.shape[1]
+    n_prof = 2 * half + 4
+    n_diff = n_prof - 1
     n_cand = 2 * half + 1
+    n_colour = colour_u.shape[0]
+    u0 = np.float32(half + 1.5)
+    c_lo = colour_u[0] if n_colour else np.float32(0.0)
+    c_hi = colour_u[n_colour - 1] if n_colour else np.float32(0.0)
+    idx = np.empty(n_prof, np.uint32)
+    ax = np.empty(n_prof, np.float32)
+    ay = np.empty(n_prof, np.float32)
+    prof = np.empty(n_prof, np.float32)
     d = np.empty(n_diff, np.float32)
     s = np.empty(n_diff, np.float32)
     peaks = np.empty(n_cand, np.int64)
     two = np.float32(2.0)
     zero = np.float32(0.0)
+    one = np.float32(1.0)
+    wu = uintp(w_img)
+    x_max = np.float32(w_img - 1)
+    y_max = np.float32(h_img - 1)
     i = first % m
     for k in range(k_total):
-        row = prof[k]
+        px = pts[k, 0]
+        py = pts[k, 1]
+        nx = nrm[k, 0]
+        ny = nrm[k, 1]
+        # the profile at u = -u0, ..., u0 (step 1); when the segment's ends, and so all its
+        # samples and their right and lower neighbours, are inside the image, without border
+        # tests: coordinates first, then the pixels (float products and sums are monotone)
+        xa = px - nx * u0
+        xb = px + nx * u0
+        ya = py - ny * u0
+        yb = py + ny * u0
+        if min(xa, xb) >= zero and max(xa, xb) < x_max and min(ya, yb) >= zero and max(ya, yb) < y_max:
+            for j in range(n_prof):
+                u = np.float32(j) - u0
+                x = nx * u + px
+                y = ny * u + py
+                ix = np.int32(x)
+                iy = np.int32(y)
+                ax[j] = x - np.float32(ix)
+                ay[j] = y - np.float32(iy)
+                idx[j] = iy * np.int32(w_img) + ix
+            for j in range(n_prof):
+                r0 = uintp(idx[j])
+                a = ax[j]
+                b = ay[j]
+                top = flat[r0] * (one - a) + flat[r0 + uintp(1)] * a
+                bottom = flat[r0 + wu] * (one - a) + flat[r0 + wu + uintp(1)] * a
+                prof[j] = top * (one - b) + bottom * b
+        else:
+            for j in range(n_prof):
+                u = np.float32(j) - u0
+                prof[j] = _bilinear_replicate(flat, w_img, h_img, nx * u + px, ny * u + py)
         for j in range(n_diff):  # D at u = -(half + 1) .. half + 1
-            d[j] = row[j + 1] - row[j]
+            d[j] = prof[j + 1] - prof[j]
         for j in range(n_diff):
             s[j] = abs(d[j])
         # local maxima of |D| above the threshold, of the normal's polarity (sgn = 0: either);
@@ -79,10 +173,6 @@ def discriminant_profiles(prof, cprof, pts, nrm, first, polarity, half, limit, t
             a1 = s[j + 1]
             peaks[c] = j
             c += (a1 >= threshold) & (a1 > s[j]) & (a1 >= s[j + 2]) & ((sgn == zero) | (sgn * d[j + 1] > zero))
-        px = pts[k, 0]
-        py = pts[k, 1]
-        nx = nrm[k, 0]
-        ny = nrm[k, 1]
         total = 0.0
         n_in = 0
         for t in range(c):
@@ -105,9 +195,27 @@ def discriminant_profiles(prof, cprof, pts, nrm, first, polarity, half, limit, t
                     total += g * inv_out[i]
         log_d[k] = base[i] + n_in * log_ratio_in[i] + math.log(miss + total)
         acc = zero
-        crow = cprof[k]
-        for j in range(n_colour):
-            acc += crow[j] * colour_w[j]
+        xa = px + nx * c_lo
+        xb = px + nx * c_hi
+        ya = py + ny * c_lo
+        yb = py + ny * c_hi
+        if min(xa, xb) >= zero and max(xa, xb) < x_max and min(ya, yb) >= zero and max(ya, yb) < y_max:
+            for j in range(n_colour):
+                u = colour_u[j]
+                x = nx * u + px
+                y = ny * u + py
+                ix = np.int32(x)
+                iy = np.int32(y)
+                a = x - np.float32(ix)
+                b = y - np.float32(iy)
+                r0 = uintp(iy * np.int32(w_img) + ix)
+                top = cflat[r0] * (one - a) + cflat[r0 + uintp(1)] * a
+                bottom = cflat[r0 + wu] * (one - a) + cflat[r0 + wu + uintp(1)] * a
+                acc += (top * (one - b) + bottom * b) * colour_w[j]
+        else:
+            for j in range(n_colour):
+                u = colour_u[j]
+                acc += _bilinear_zero(cflat, w_img, h_img, nx * u + px, ny * u + py) * colour_w[j]
         colour[k] = acc
         i += 1
         if i == m:
