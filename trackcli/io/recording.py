@@ -273,6 +273,60 @@ def _points(value: Any, name: str, *, leading: int | None = None) -> np.ndarray:
     return a
 
 
+def _strips_arrow(strips: Sequence[np.ndarray]) -> Any:
+    """Line strips ((n_i, 2) float32 arrays) as the Arrow array of Rerun's ``LineStrip2D`` batch.
+
+    Built from one buffer of points and the strips' offsets; Rerun's own conversion takes
+    each strip separately, twenty times slower for the particle contours of a frame.
+    """
+    import pyarrow as pa
+    from rerun.components import LineStrip2DBatch
+
+    kind = LineStrip2DBatch._ARROW_DATATYPE
+    lengths = np.fromiter((len(p) for p in strips), dtype=np.int32, count=len(strips))
+    offsets = np.zeros(len(strips) + 1, dtype=np.int32)
+    np.cumsum(lengths, out=offsets[1:])
+    flat = (np.concatenate([np.asarray(p, dtype=np.float32).reshape(-1) for p in strips]) if len(strips)
+            else np.zeros(0, np.float32))
+    points = pa.FixedSizeListArray.from_arrays(pa.array(flat, type=pa.float32()), type=kind.value_type)
+    return pa.ListArray.from_arrays(pa.array(offsets), points, type=kind)
+
+
+def _tensors_arrow(rows: Sequence[np.ndarray]) -> Any:
+    """1-D tensors (one per row, as float64) as the Arrow array of Rerun's ``TensorData`` batch.
+
+    Rerun's Python side converts one tensor per call only; bar charts sent as columns need
+    the batch, built here from the same Arrow type (shape, no names, an ``F64`` buffer).
+    """
+    import pyarrow as pa
+    from rerun.components import TensorDataBatch
+
+    kind = TensorDataBatch._ARROW_DATATYPE
+    union = kind.field("buffer").type
+    n = len(rows)
+    values = [np.asarray(r, dtype=np.float64).reshape(-1) for r in rows]
+    lengths = np.fromiter((v.size for v in values), dtype=np.int64, count=n)
+    shape = pa.ListArray.from_arrays(pa.array(np.arange(n + 1, dtype=np.int32)),
+                                     pa.array(lengths.astype(np.uint64), type=pa.uint64()),
+                                     type=kind.field("shape").type)
+    offsets = np.zeros(n + 1, dtype=np.int32)
+    np.cumsum(lengths, out=offsets[1:])
+    flat = np.concatenate(values) if n else np.zeros(0)
+    children, code = [], None
+    for i in range(union.num_fields):
+        field = union.field(i)
+        if field.name == "F64":
+            children.append(pa.ListArray.from_arrays(pa.array(offsets), pa.array(flat, type=pa.float64()),
+                                                     type=field.type))
+            code = union.type_codes[i]
+        else:
+            children.append(pa.array([], type=field.type))
+    buffer = pa.Array.from_buffers(union, n, [None, pa.py_buffer(np.full(n, code, np.int8)),
+                                              pa.py_buffer(np.arange(n, dtype=np.int32))], children=children)
+    return pa.StructArray.from_arrays([shape, pa.nulls(n, type=kind.field("names").type), buffer],
+                                      fields=[kind.field(i) for i in range(kind.num_fields)])
+
+
 def _color(value: Any, name: str = "color") -> np.ndarray:
     """Validate one RGB or RGBA colour given as integers 0–255."""
     c = np.asarray(value)
@@ -423,6 +477,9 @@ class Recording:
         self._styled: set[str] = set()
         self._series: dict[str | None, list[str]] = {}
         self._roots: set[str] = set()
+        self._bar_edges: dict[str, np.ndarray] = {}
+        self._frame: tuple[int, float] | None = None
+        self._batch: dict[tuple[str, str, tuple[str, ...]], list[tuple[int, float, tuple]]] | None = None
 
     # -- lifecycle ---------------------------------------------------------
 
@@ -478,6 +535,8 @@ class Recording:
         if stream is None:
             return
         try:
+            if exc_type is None:
+                self.flush_overlays(last=True)
             if exc_type is None and self._kind is not None:
                 stream.send_blueprint(make_blueprint(self._kind, self.content()), make_active=True,
                                       make_default=True)
@@ -529,6 +588,74 @@ class Recording:
             raise DataError(f"frame time must be finite, got {time_s!r}")
         self.stream.set_time("frame", sequence=int(index))
         self.stream.set_time("video_time", duration=float(time_s))
+        self._frame = (int(index), float(time_s))
+
+    # -- batches of frames ---------------------------------------------------
+
+    def batch_overlays(self) -> None:
+        """From now on, hold the per-frame images and overlays and send them as columns.
+
+        :meth:`log_frame`, :meth:`log_contour`, :meth:`log_contours`, :meth:`log_points`
+        and :meth:`log_segments` then keep their data, at the time of the last
+        :meth:`set_frame`, until :meth:`flush_overlays` sends each entity's rows with one
+        ``send_columns`` call.  The recording holds the same rows as when they are logged
+        one by one (the same components at the same times); building one archetype per
+        call and frame cost more than a millisecond per frame of Python.
+        """
+        if self._batch is None:
+            self._batch = {}
+
+    def flush_overlays(self, *, last: bool = False) -> None:
+        """Send the rows held since :meth:`batch_overlays` (or the last flush).
+
+        With ``last``, go back to logging every call at once.
+        """
+        batch, self._batch = self._batch, (None if last else {})
+        if not batch:
+            return
+        import rerun as rr
+
+        for (entity, kind, names), rows in batch.items():
+            archetype = getattr(rr, kind)
+            frames = np.fromiter((r[0] for r in rows), dtype=np.int64, count=len(rows))
+            times = np.fromiter((r[1] for r in rows), dtype=float, count=len(rows))
+            values: dict[str, Any] = {}
+            lengths: dict[str, Any] = {}
+            for j, name in enumerate(names):
+                parts = [r[2][j] for r in rows]
+                if name in ("blob", "media_type"):  # one per row
+                    values[name], lengths[name] = parts, np.ones(len(parts), int)
+                elif name in ("values", "abscissa"):  # one 1-D tensor per row
+                    values[name], lengths[name] = _tensors_arrow(parts), np.ones(len(parts), int)
+                else:
+                    lengths[name] = [len(v) for v in parts]
+                    if name == "strips":
+                        values[name] = _strips_arrow([strip for v in parts for strip in v])
+                    elif name == "colors":  # RGB and RGBA rows together: RGB is RGBA with alpha 255
+                        values[name] = np.concatenate(
+                            [v if v.shape[-1] == 4 else np.pad(v, ((0, 0), (0, 1)), constant_values=255) for v in parts])
+                    else:
+                        values[name] = np.concatenate(parts)
+            # one call for all components (some archetypes check one against another), then
+            # each component cut into the rows by its own lengths
+            columns = [col.partition(lengths[col.component_descriptor().component.rsplit(":", 1)[-1]])
+                       for col in archetype.columns(**values)]
+            self.stream.send_columns(entity, indexes=[rr.TimeColumn("frame", sequence=frames),
+                                                      rr.TimeColumn("video_time", duration=times)],
+                                     columns=columns)
+
+    def _emit(self, entity: str, kind: str, **components: Any) -> None:
+        """Log one archetype (``rr.<kind>``) now, or hold it for the batch (components not None)."""
+        import rerun as rr
+
+        if self._batch is None or self._frame is None:
+            if "strips" in components:
+                components["strips"] = _strips_arrow(components["strips"])
+            self.stream.log(entity, getattr(rr, kind).from_fields(**components))
+            return
+        names = tuple(k for k, v in components.items() if v is not None)
+        self._batch.setdefault((entity, kind, names), []).append(
+            (self._frame[0], self._frame[1], tuple(components[k] for k in names)))
 
     # -- frames ------------------------------------------------------------
 
@@ -584,7 +711,7 @@ class Recording:
         if not ok:
             raise DataError(f"JPEG encoding failed for a frame of shape {img.shape}")
         self._note(entity)
-        self.stream.log(entity, rr.EncodedImage(contents=buf.tobytes(), media_type="image/jpeg"))
+        self._emit(entity, "EncodedImage", blob=buf.tobytes(), media_type="image/jpeg")
 
     def frame_logger(self, video_path: str | os.PathLike[str] | None, *, quality: int = 85,
                      entity: str = VIDEO) -> FrameLogger:
@@ -629,8 +756,8 @@ class Recording:
         pts = _points(points, "points", leading=1)
         if closed and len(pts) > 1:
             pts = np.concatenate([pts, pts[:1]])
-        self.stream.log(entity, rr.LineStrips2D([pts], colors=[_color(color)],
-                                                radii=[_half_width(width)]))
+        self._emit(entity, "LineStrips2D", strips=[pts], colors=_color(color)[None],
+                   radii=np.array([_half_width(width)], np.float32))
 
     def log_contours(self, entity: str, curves: np.ndarray, weights: np.ndarray | None = None,
                      width: float = 1.0, *, closed: bool = True) -> None:
@@ -655,7 +782,7 @@ class Recording:
         c, colors = c[order], colors[order]
         if closed and c.shape[1] > 1:
             c = np.concatenate([c, c[:, :1]], axis=1)
-        self.stream.log(entity, rr.LineStrips2D(c, colors=colors, radii=_half_width(width)))
+        self._emit(entity, "LineStrips2D", strips=list(c), colors=colors, radii=np.array([_half_width(width)], np.float32))
 
     def log_points(self, entity: str, pts: np.ndarray, colors: Any = None,
                    radii: float | np.ndarray | None = None) -> None:
@@ -687,7 +814,11 @@ class Recording:
             if r.ndim > 1 or (r.ndim == 1 and r.shape != (len(p),)) or np.any(r <= 0):
                 raise DataError(f"radii must be positive, one value or shape ({len(p)},)")
             radii = r
-        self.stream.log(entity, rr.Points2D(p, colors=colors, radii=radii))
+        if colors is not None and colors.ndim == 1:
+            colors = colors[None]
+        if radii is not None and radii.ndim == 0:
+            radii = radii[None]
+        self._emit(entity, "Points2D", positions=p, colors=colors, radii=radii)
 
     def log_segments(self, entity: str, starts: np.ndarray, ends: np.ndarray,
                      color: Sequence[int] = (0, 200, 255), width: float = 1.0) -> None:
@@ -706,8 +837,8 @@ class Recording:
             raise DataError(
                 f"starts and ends must have the same shape, got {a.shape} and {b.shape}"
             )
-        self.stream.log(entity, rr.LineStrips2D(np.stack([a, b], axis=1), colors=[_color(color)],
-                                                radii=_half_width(width)))
+        self._emit(entity, "LineStrips2D", strips=list(np.stack([a, b], axis=1)), colors=_color(color)[None],
+                   radii=np.array([_half_width(width)], np.float32))
 
     # -- time series ---------------------------------------------------------
 
@@ -820,12 +951,17 @@ class Recording:
         kwargs: dict[str, Any] = {}
         if x_edges is not None:
             e = _edges(x_edges, c.shape[0])
-            kwargs["abscissa"] = 0.5 * (e[:-1] + e[1:])
-            kwargs["widths"] = np.diff(e).astype(np.float32)
+            # the bins' places and widths are logged again only when they change (the viewer
+            # shows the latest ones): converting them took half the time of every frame's chart
+            last = self._bar_edges.get(entity)
+            if last is None or last.shape != e.shape or not np.array_equal(last, e):
+                kwargs["abscissa"] = 0.5 * (e[:-1] + e[1:])
+                kwargs["widths"] = np.diff(e).astype(np.float32)
+                self._bar_edges[entity] = e
         if color is not None:
-            kwargs["color"] = _color(color)
+            kwargs["color"] = _color(color)[None]
         self._note(entity)
-        self.stream.log(entity, rr.BarChart(c, **kwargs))
+        self._emit(entity, "BarChart", values=c, **kwargs)
 
     def log_histogram_image(self, entity: str, matrix: np.ndarray, x_edges: np.ndarray, *,
                             first_frame: int = 0) -> None:
