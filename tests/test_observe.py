@@ -278,3 +278,33 @@ def test_compiled_per_normal_rejects_non_finite_curves():
     with pytest.raises(DataError, match="finite"):
         observe.per_normal(judge.app, ev, pts, nrm, h=judge.h, sigma=judge.sigma, threshold=judge.threshold,
                            miss=judge.miss)
+
+
+def _density_reference(img, centre, size, threshold, stride=3):
+    """feature_density written with numpy: every stride-th row and column of the window."""
+    h, w = img.shape
+    half = 2.5 * size
+    x0, x1 = int(max(0, centre[0] - half)), int(min(w, centre[0] + half))
+    y0, y1 = int(max(0, centre[1] - half)), int(min(h, centre[1] + half))
+    if x1 - x0 < 8 or y1 - y0 < 8:
+        x0, x1, y0, y1 = 0, w, 0, h
+    win = img[y0:y1, x0:x1]
+    count = length = 0
+    for lines in (win[::stride, :], win[:, ::stride].T):
+        d = np.abs(np.diff(lines, axis=1))
+        if d.shape[1] < 3:
+            continue
+        mid = d[:, 1:-1]
+        count += int(((mid > d[:, :-2]) & (mid >= d[:, 2:]) & (mid >= threshold)).sum())
+        length += mid.size
+    return max(count / max(length, 1), observe.MIN_DENSITY)
+
+
+def test_feature_density_counts_what_the_numpy_scan_counts():
+    rng = np.random.default_rng(4)
+    for _ in range(60):
+        h, w = (int(v) for v in rng.integers(4, 200, 2))
+        img = cv2.GaussianBlur((rng.random((h, w)) * 255).astype(np.float32), (0, 0), float(rng.uniform(0.5, 3)))
+        centre = rng.uniform(-50, 250, 2)
+        size, threshold = float(rng.uniform(1, 60)), float(rng.uniform(0, 12))
+        assert observe.feature_density(img, centre, size, threshold) == _density_reference(img, centre, size, threshold)

@@ -71,7 +71,7 @@ import cv2
 import numpy as np
 
 from trackcli.errors import DataError
-from trackcli.observe.kernels import discriminant_normals
+from trackcli.observe.kernels import count_line_features, discriminant_normals
 from trackcli.observe.measure import _as_image, _as_normals, _remap_rows, _scan_chunks
 
 __all__ = ["Appearance", "FrameEvidence", "colour_peaks", "confidence", "evidence", "feature_density", "hsv_bins",
@@ -171,17 +171,7 @@ def feature_density(fimg: np.ndarray, centre: np.ndarray, size: float, threshold
     y0, y1 = int(max(0, cy - half)), int(min(h, cy + half))
     if x1 - x0 < 8 or y1 - y0 < 8:
         x0, x1, y0, y1 = 0, w, 0, h
-    win = img[y0:y1, x0:x1]
-    count = 0
-    length = 0
-    for lines in (win[::stride, :], win[:, ::stride].T):
-        d = np.abs(np.diff(lines, axis=1))
-        if d.shape[1] < 3:
-            continue
-        mid = d[:, 1:-1]
-        peak = (mid > d[:, :-2]) & (mid >= d[:, 2:]) & (mid >= threshold)
-        count += int(peak.sum())
-        length += mid.size
+    count, length = count_line_features(img, y0, y1, x0, x1, int(stride), np.float32(threshold))
     return max(count / max(length, 1), MIN_DENSITY)
 
 

@@ -220,3 +220,38 @@ def discriminant_normals(fimg, cmap, pts, nrm, first, polarity, half, limit, thr
         i += 1
         if i == m:
             i = 0
+
+
+@njit(cache=True, nogil=True)
+def count_line_features(img, y0, y1, x0, x1, stride, threshold):  # pragma: no cover - compiled
+    """Features on every ``stride``-th row and column of ``img[y0:y1, x0:x1]``: ``(count, candidates)``.
+
+    A feature is a local maximum of ``|D|`` (``D`` the difference of neighbouring pixels
+    along the line) at least ``threshold``; ``candidates`` is the number of places tested
+    (two fewer than the differences of each line).
+    """
+    count = 0
+    length = 0
+    if x1 - x0 >= 4:  # rows: at least 3 differences, one candidate
+        for y in range(y0, y1, stride):
+            prev = abs(img[y, x0 + 1] - img[y, x0])
+            cur = abs(img[y, x0 + 2] - img[y, x0 + 1])
+            for x in range(x0 + 2, x1 - 1):
+                nxt = abs(img[y, x + 1] - img[y, x])
+                if cur > prev and cur >= nxt and cur >= threshold:
+                    count += 1
+                prev = cur
+                cur = nxt
+            length += x1 - x0 - 3
+    if y1 - y0 >= 4:  # columns
+        for x in range(x0, x1, stride):
+            prev = abs(img[y0 + 1, x] - img[y0, x])
+            cur = abs(img[y0 + 2, x] - img[y0 + 1, x])
+            for y in range(y0 + 2, y1 - 1):
+                nxt = abs(img[y + 1, x] - img[y, x])
+                if cur > prev and cur >= nxt and cur >= threshold:
+                    count += 1
+                prev = cur
+                cur = nxt
+            length += y1 - y0 - 3
+    return count, length
