@@ -380,7 +380,7 @@ def _video_overrides(fps, start, end, step) -> dict:
                    "coupled:).")
 @click.option("--particles", type=click.IntRange(min=1), help="CONDENSATION sample-set size N (condensation.particles).")
 @click.option("--threads", type=click.IntRange(min=0, max=256),
-              help="Threads that score CONDENSATION's samples (condensation.threads; 0 = every core from 2000 "
+              help="Threads that score CONDENSATION's samples (condensation.threads; 0 = every core from 300 "
                    "samples up, one below). The results do not depend on it.")
 @click.option("--seed", type=click.IntRange(min=0), help="Random seed (same seed, same numbers).")
 @click.option("-o", "--outdir", type=click.Path(file_okay=False), default="trackcli-out", show_default=True,
