@@ -59,9 +59,14 @@ def _circle(center, radius: float, m: int = M) -> np.ndarray:
     return np.column_stack([center[0] + radius * np.cos(s), center[1] + radius * np.sin(s)])
 
 
-@pytest.fixture(scope="module")
-def full(tmp_path_factory):
-    """A 5-frame recording with every kind of data; returns (path, what was logged)."""
+@pytest.fixture(scope="module", params=[False, True], ids=["one-by-one", "batched"])
+def full(tmp_path_factory, request):
+    """A 5-frame recording with every kind of data; returns (path, what was logged).
+
+    Made twice: logging every call at once, and with the frames and overlays held and sent
+    as columns (``batch_overlays``; flushed after frame 2 and when the recording closes),
+    which must give the same rows.
+    """
     rng = np.random.default_rng(7)
     folder = tmp_path_factory.mktemp("full")
     path = folder / "run.rrd"
@@ -75,8 +80,12 @@ def full(tmp_path_factory):
     hist_matrix = rng.random((N_FRAMES, len(EDGES) - 1))
     with Recording(path, blueprint="track", recording_id="test-run") as rec:
         rec.log_params("params", params)
+        if request.param:
+            rec.batch_overlays()
         log_video = rec.frame_logger(None, quality=95)
         for i in frames:
+            if request.param and i == 3:
+                rec.flush_overlays()
             rec.set_frame(int(i), float(times[i]))
             img = _synthetic_frame(int(i))
             log_video(int(i), img)

@@ -531,12 +531,19 @@ class Recording:
         return self
 
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
-        stream, self._stream = self._stream, None
-        if stream is None:
+        if self._stream is None:
             return
         try:
             if exc_type is None:
                 self.flush_overlays(last=True)
+        except BaseException:
+            self._stream.disconnect()
+            self._stream = None
+            self.tmp_path.unlink(missing_ok=True)
+            raise
+        self._batch = None
+        stream, self._stream = self._stream, None
+        try:
             if exc_type is None and self._kind is not None:
                 stream.send_blueprint(make_blueprint(self._kind, self.content()), make_active=True,
                                       make_default=True)

@@ -13,6 +13,7 @@ All files are written atomically: an interrupted run leaves no half-written file
 
 from __future__ import annotations
 
+import array
 import contextlib
 import logging
 import os
@@ -158,10 +159,14 @@ def run_clip(
     t_start = time.perf_counter()
     n = lost = 0
     found_sum = 0.0
-    ess_vals: list[float] = []
-    series: dict[str, list] = {k: [] for k in ("frame", "time", "tx", "ty", "cx", "cy", "found", "gate", "ess", "loglik")}
+    ess_sum, ess_count = 0.0, 0
+    # what the recording's plots need at the end, kept compact (8 bytes a value; each frame's
+    # histogram as the grey levels of its row of the heat-map): memory stays nearly flat in
+    # the clip's length
+    series: dict[str, array.array] = {k: array.array("d") for k in ("frame", "time", "tx", "ty", "cx", "cy", "found",
+                                                                     "gate", "ess", "loglik")}
     extra_names = list(extra_columns or [])
-    extras: list[list[float]] = []
+    extras = array.array("d")
     hist_rows: list[np.ndarray] = []
     hist_edges = None
     rec_ctx = None
@@ -211,16 +216,18 @@ def run_clip(
                 lost += int(r.lost)
                 found_sum += r.n_found / max(r.n_normals, 1)
                 if np.isfinite(r.ess):
-                    ess_vals.append(r.ess)
-                for key, val in (("frame", r.index), ("time", r.time), ("tx", r.X[0]), ("ty", r.X[1]),
-                                 ("cx", r.centroid[0]), ("cy", r.centroid[1]), ("found", r.n_found),
-                                 ("gate", r.gate_rms), ("ess", r.ess), ("loglik", r.loglik)):
-                    series[key].append(val)
-                if extra_names:
-                    extras.append([float(r.extra.get(e, np.nan)) for e in extra_names])
-                if "histogram" in r.display:
-                    hist_rows.append(np.asarray(r.display["histogram"], dtype=float))
-                    hist_edges = r.display["hist_edges"]
+                    ess_sum += float(r.ess)
+                    ess_count += 1
+                if rec is not None:
+                    for key, val in (("frame", r.index), ("time", r.time), ("tx", r.X[0]), ("ty", r.X[1]),
+                                     ("cx", r.centroid[0]), ("cy", r.centroid[1]), ("found", r.n_found),
+                                     ("gate", r.gate_rms), ("ess", r.ess), ("loglik", r.loglik)):
+                        series[key].append(float(val))
+                    if extra_names:
+                        extras.extend(float(r.extra.get(e, np.nan)) for e in extra_names)
+                    if "histogram" in r.display:
+                        hist_rows.append(histogram_row(r.display["histogram"]))
+                        hist_edges = r.display["hist_edges"]
                 if recorder is not None:
                     recorder.submit(frames.current, r)
                 if smoother is not None:
@@ -237,7 +244,7 @@ def run_clip(
                 if extras:
                     f = np.asarray(series["frame"], dtype=np.int64)
                     t = np.asarray(series["time"], dtype=float)
-                    values = np.asarray(extras, dtype=float)
+                    values = np.asarray(extras, dtype=float).reshape(-1, len(extra_names))
                     # a mixed-state run's label posteriors (p_<label>): one plot and a label strip
                     labels = [j for j, e in enumerate(extra_names) if e.startswith("p_")]
                     if labels:
@@ -267,7 +274,7 @@ def run_clip(
     return RunSummary(
         clip=str(getattr(video, "path", "?")), tracker=tracker, frames=n, frames_lost=lost,
         mean_found_fraction=found_sum / n if n else 0.0,
-        mean_ess=float(np.mean(ess_vals)) if ess_vals else float("nan"),
+        mean_ess=ess_sum / ess_count if ess_count else float("nan"),
         tracker_seconds=tracker_seconds, decode_seconds=frames.decode_seconds, wall_seconds=wall,
         csv=str(csv_path), rrd=str(rrd_path) if rrd_path else None,
         smoothed_csv=str(smooth_csv_path) if smoother is not None else None,
@@ -299,7 +306,18 @@ def _record_frame(rec: Any, log_frame: Any, frame: Any, r: Any) -> None:
             raise DataError(f"display overlay {path}: unknown kind {kind!r} (points, segments or contour)")
 
 
-def _record_series(rec: Any, s: dict[str, list], hist_rows: list, hist_edges: Any) -> None:
+def histogram_row(counts: Any) -> np.ndarray:
+    """One frame's row of the histogram heat-map: the counts scaled to their maximum, as grey
+    levels 0–255 (what :func:`trackcli.io.recording.histogram_image` makes of the row; kept
+    instead of the counts, 64 bytes a frame)."""
+    c = np.asarray(counts, dtype=float)
+    top = c.max() if c.size else 0.0
+    if not (np.isfinite(top) and top > 0):
+        return np.zeros(c.shape, np.uint8)
+    return np.rint(255.0 * np.clip(c / top, 0.0, 1.0)).astype(np.uint8)
+
+
+def _record_series(rec: Any, s: dict[str, Any], hist_rows: list, hist_edges: Any) -> None:
     if not s["frame"]:
         return
     f = np.asarray(s["frame"], dtype=np.int64)
