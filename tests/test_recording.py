@@ -471,3 +471,14 @@ def test_unwritable_output_is_a_clear_error(tmp_path):
         with Recording(tmp_path / "blocked.rrd"):
             pass
     assert not (tmp_path / "blocked.rrd").exists()
+
+
+def test_histogram_rows_kept_compactly_give_the_same_heat_map():
+    """``track`` keeps each frame's histogram as its heat-map row (uint8); the image is the same."""
+    from trackcli.run.clips import histogram_row
+
+    rng = np.random.default_rng(3)
+    m = rng.random((40, 64)) * rng.choice([0.0, 1e-6, 1.0, 1e6], size=(40, 1))
+    rows = np.vstack([histogram_row(r) for r in m])
+    assert rows.dtype == np.uint8
+    np.testing.assert_array_equal(histogram_image(rows), histogram_image(m))
