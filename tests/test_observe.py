@@ -308,3 +308,19 @@ def test_feature_density_counts_what_the_numpy_scan_counts():
         centre = rng.uniform(-50, 250, 2)
         size, threshold = float(rng.uniform(1, 60)), float(rng.uniform(0, 12))
         assert observe.feature_density(img, centre, size, threshold) == _density_reference(img, centre, size, threshold)
+
+
+def test_colour_map_is_the_lookup_of_the_hsv_bins():
+    """The compiled colour map gives, pixel for pixel, the OpenCV composition it replaces."""
+    rng = np.random.default_rng(5)
+    lut = rng.uniform(-3, 3, 256).astype(np.float32)
+    app = observe.Appearance(polarity=np.zeros(4, np.int8), lambda_in=0.1, lut=lut, size=10.0,
+                             colour_offsets=np.array([1.5], np.float32))
+    for shape in ((240, 320, 3), (7, 5, 3), (31, 1, 3)):
+        frame = (rng.random(shape) * 256).astype(np.uint8)
+        want = cv2.LUT(observe.hsv_bins(frame), lut.reshape(1, -1))
+        got = app.colour_map(frame)
+        assert got.dtype == np.float32 and got.shape == shape[:2]
+        np.testing.assert_array_equal(got, want)
+    grey = (rng.random((12, 9)) * 256).astype(np.uint8)  # a grey frame is taken as BGR with equal channels
+    np.testing.assert_array_equal(app.colour_map(grey), cv2.LUT(observe.hsv_bins(grey), lut.reshape(1, -1)))

@@ -71,7 +71,7 @@ import cv2
 import numpy as np
 
 from trackcli.errors import DataError
-from trackcli.observe.kernels import count_line_features, discriminant_normals
+from trackcli.observe.kernels import colour_lookup, count_line_features, discriminant_normals
 from trackcli.observe.measure import _as_image, _as_normals, _remap_rows, _scan_chunks
 
 __all__ = ["Appearance", "FrameEvidence", "colour_peaks", "confidence", "evidence", "feature_density", "hsv_bins",
@@ -112,8 +112,15 @@ class Appearance:
     colour_offsets: np.ndarray
 
     def colour_map(self, frame_bgr: np.ndarray) -> np.ndarray:
-        """The colour log-ratio ``L`` of every pixel of a frame: float32 (H, W) in [-3, 3]."""
-        return cv2.LUT(hsv_bins(frame_bgr), self.lut.reshape(1, -1))
+        """The colour log-ratio ``L`` of every pixel of a frame: float32 (H, W) in [-3, 3].
+
+        The same as ``cv2.LUT(hsv_bins(frame), lut)``, in one compiled pass after the HSV
+        conversion.
+        """
+        hsv = cv2.cvtColor(_bgr(frame_bgr), cv2.COLOR_BGR2HSV)
+        out = np.empty(hsv.shape[:2], np.float32)
+        colour_lookup(hsv, _BIN_SHARES, np.ascontiguousarray(self.lut, dtype=np.float32).reshape(-1), out)
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -136,6 +143,7 @@ _BIN_TABLE[0, :, 0] = ((np.arange(256) * HIST_BINS[0]) // 180).clip(max=HIST_BIN
 _BIN_TABLE[0, :, 1] = ((np.arange(256) * HIST_BINS[1]) // 256) * HIST_BINS[2]
 _BIN_TABLE[0, :, 2] = (np.arange(256) * HIST_BINS[2]) // 256
 _SUM_CHANNELS = np.ones((1, 3), np.float32)
+_BIN_SHARES = np.ascontiguousarray(_BIN_TABLE[0])  # (256, 3): the same table for the compiled look-up
 
 
 def hsv_bins(frame_bgr: np.ndarray) -> np.ndarray:

@@ -255,3 +255,18 @@ def count_line_features(img, y0, y1, x0, x1, stride, threshold):  # pragma: no c
                 cur = nxt
             length += y1 - y0 - 3
     return count, length
+
+
+@njit(cache=True, nogil=True)
+def colour_lookup(hsv, shares, lut, out):  # pragma: no cover - compiled
+    """``out[y, x] = lut[shares[h, 0] + shares[s, 1] + shares[v, 2]]`` for the HSV pixel ``(h, s, v)``.
+
+    ``shares`` (256, 3) uint8 holds each channel's part of the flat histogram bin; ``lut`` (256,)
+    float32 the colour log-ratio of every bin.  One pass over the frame instead of three
+    OpenCV calls (two table look-ups and a channel sum) with two intermediate images.
+    """
+    h_img, w_img = out.shape
+    for y in range(h_img):
+        for x in range(w_img):
+            b = int(shares[hsv[y, x, 0], 0]) + int(shares[hsv[y, x, 1], 1]) + int(shares[hsv[y, x, 2], 2])
+            out[y, x] = lut[b]
