@@ -60,12 +60,16 @@ def presence_for(img: np.ndarray, space):
     return judge, fimg, sampler
 
 
-def test_template_scores_as_the_object_and_the_same_curve_on_texture_as_background():
-    rng = np.random.default_rng(0)
-    img = object_frame(rng)
+def ellipse_scene(seed: int):
+    """The object frame with the ellipse's template learned on it: ``(space, judge, sampler, evidence)``."""
+    img = object_frame(np.random.default_rng(seed))
     space = ellipse_space(240, 120, 30, 40)
     judge, fimg, sampler = presence_for(img, space)
-    ev = judge.evidence(img, fimg, space.origin)
+    return space, judge, sampler, judge.evidence(img, fimg, space.origin)
+
+
+def test_template_scores_as_the_object_and_the_same_curve_on_texture_as_background():
+    space, judge, sampler, ev = ellipse_scene(0)
     on = np.zeros(4)
     on_texture = np.array([-160.0, 0, 0, 0])  # the same outline over the dense strokes
     X = np.stack([on, on_texture])
@@ -233,10 +237,8 @@ def test_presence_reference_is_the_templates_own_score():
 def test_compiled_per_normal_agrees_with_the_numpy_reference(seed):
     """The kernel and the numpy version see the same features: curves on the object, on
     texture, across and beyond the frame's edge, rotated (mixed polarities) and far away."""
-    rng = np.random.default_rng(seed)
-    img = object_frame(rng)
-    space = ellipse_space(240, 120, 30, 40)
-    judge, fimg, sampler = presence_for(img, space)
+    space, judge, sampler, ev = ellipse_scene(seed)
+    rng = np.random.default_rng(100 + seed)
     # normals of a learned polarity (only features of that sign count), of the opposite one
     # (no feature of the object's edge counts there) and of either sign
     pol = judge.app.polarity.copy()
@@ -244,7 +246,6 @@ def test_compiled_per_normal_agrees_with_the_numpy_reference(seed):
     pol[::3] = 0
     pol[1::6] *= -1
     app = dataclasses.replace(judge.app, polarity=pol)
-    ev = judge.evidence(img, fimg, space.origin)
     n = 300
     X = np.zeros((n, 4))
     X[:, :2] = rng.normal(0, 60, (n, 2))
@@ -267,11 +268,7 @@ def test_compiled_per_normal_agrees_with_the_numpy_reference(seed):
 
 
 def test_compiled_per_normal_rejects_non_finite_curves():
-    rng = np.random.default_rng(0)
-    img = object_frame(rng)
-    space = ellipse_space(240, 120, 30, 40)
-    judge, fimg, sampler = presence_for(img, space)
-    ev = judge.evidence(img, fimg, space.origin)
+    space, judge, sampler, ev = ellipse_scene(0)
     pts, nrm = space.points_normals(np.zeros((2, 4)), sampler)
     pts = pts.copy()
     pts[1, 3, 0] = np.nan
