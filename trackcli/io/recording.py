@@ -704,7 +704,6 @@ class Recording:
             JPEG quality 1–100.
         """
         import cv2
-        import rerun as rr
 
         img = np.asarray(image_bgr)
         shape_ok = img.ndim == 2 or (img.ndim == 3 and img.shape[2] in (1, 3))
@@ -758,8 +757,6 @@ class Recording:
         closed : bool
             Join the last point back to the first.
         """
-        import rerun as rr
-
         pts = _points(points, "points", leading=1)
         if closed and len(pts) > 1:
             pts = np.concatenate([pts, pts[:1]])
@@ -777,8 +774,6 @@ class Recording:
         weights : ndarray of shape (K,), optional
             Non-negative weights; equal weights if None.
         """
-        import rerun as rr
-
         c = _points(curves, "curves", leading=2)
         k = c.shape[0]
         w = np.ones(k) if weights is None else np.asarray(weights, dtype=float)
@@ -804,8 +799,6 @@ class Recording:
         radii : float or ndarray of shape (P,), optional
             In image pixels.
         """
-        import rerun as rr
-
         p = _points(pts, "pts", leading=1)
         if colors is not None:
             col = np.asarray(colors)
@@ -836,8 +829,6 @@ class Recording:
         starts, ends : ndarray of shape (K, 2)
             End points in image coordinates.
         """
-        import rerun as rr
-
         a = _points(starts, "starts", leading=1)
         b = _points(ends, "ends", leading=1)
         if a.shape != b.shape:
@@ -950,8 +941,6 @@ class Recording:
             Bin edges; bars are placed at the bin centres with the bin widths.  Bars are
             at 0..B-1 if None.
         """
-        import rerun as rr
-
         c = np.asarray(counts, dtype=float)
         if c.ndim != 1:
             raise DataError(f"counts must have shape (B,), got {c.shape}")
