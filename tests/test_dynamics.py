@@ -463,3 +463,28 @@ def test_from_dict_rejects_malformed(change, match):
 def test_from_dict_rejects_non_mapping():
     with pytest.raises(ModelError, match="expected a mapping"):
         AR2.from_dict([1, 2, 3])
+
+
+def test_repeated_roots_are_read_without_their_rounding():
+    """Constant velocity (a double root 1) and critical damping (a double root 0.92), mixed by
+    a change of coordinates, come out of eig as pairs like 1 ± 3e-8 i: the modes show them
+    without spurious growth, damping, oscillation or period."""
+    rng = np.random.default_rng(0)
+    S = rng.normal(size=(3, 3))
+    d = np.array([1.0, 1.0, 0.92])
+    model = AR2(S @ np.diag(-d**2) @ np.linalg.inv(S), S @ np.diag(2 * d) @ np.linalg.inv(S), np.eye(3),
+                np.zeros(3), TAU)
+    assert np.abs(model.eigenvalues().imag).max() > 0  # the rounding this is about
+    modes = model.modes()
+    assert len(modes) == 6
+    for m in modes:
+        assert m.eigenvalue.imag == 0 and m.frequency == 0 and m.period == math.inf
+    ones = [m for m in modes if m.modulus == 1.0]
+    assert len(ones) == 4
+    assert all(m.beta == 0.0 and m.decay_time == math.inf and not m.stable for m in ones)
+    assert "marginal" in ones[0].summary()
+    rest = [m for m in modes if m.modulus < 1.0]
+    assert all(m.stable and m.beta == pytest.approx(-math.log(0.92) / TAU, rel=1e-4) for m in rest)
+    assert model.stability() == "marginal"
+    assert AR2([[-0.81]], [[1.8]], [[1.0]], [0.0], TAU).stability() == "stable"
+    assert AR2([[-1.0]], [[2.1]], [[1.0]], [0.0], TAU).stability() == "UNSTABLE"

@@ -754,7 +754,7 @@ def inspect_cmd(model_path, template, config, fps, as_json):
     click.echo(f"  shape-space   {space.kind}: {', '.join(names)} ({space.Nq} control points, degree "
                f"{space.basis.degree}, {'closed' if space.basis.closed else 'open'})")
     click.echo(f"  frame interval {dyn.tau:.4g} s ({1 / dyn.tau:.3g} frames/s)")
-    click.echo(f"  stability     spectral radius {dyn.spectral_radius():.4f} ({'stable' if dyn.is_stable() else 'UNSTABLE'})")
+    click.echo(f"  stability     spectral radius {dyn.spectral_radius():.4f} ({dyn.stability()})")
     click.echo(f"  steady-state RMS displacement: total {fmt(rms)} px, translation {fmt(rms_t)} px, "
                f"deformation {fmt(rms_d)} px")
     click.echo("  mean X         " + ", ".join(f"{n}={v:.4g}" for n, v in zip(names, dyn.mean)))
@@ -778,7 +778,7 @@ def _mode_rows(modes, space) -> list[str]:
         per = f"{x.period:9.3f}" if np.isfinite(x.period) else "        -"
         dec = f"{x.decay_time:8.3f}" if np.isfinite(x.decay_time) else "     inf"
         rows.append(f"    {x.modulus:8.4f}  {x.beta:12.3f}  {x.frequency:8.3f}  {dec}  {per}  {dom}"
-                    + ("" if x.stable else "  UNSTABLE"))
+                    + ("" if x.stable else "  no decay" if x.modulus == 1.0 else "  UNSTABLE"))
     return rows
 
 

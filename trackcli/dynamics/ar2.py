@@ -106,6 +106,24 @@ def _check_metric(H: Any, nx: int) -> np.ndarray:
 # The model
 
 
+#: eigenvalues are read to this precision in the modal analysis: ``eig`` returns a repeated
+#: eigenvalue (a Jordan block, e.g. constant velocity or critical damping) only to about the
+#: square root of the machine precision, as a pair 1 ± 1e-8 or 0.92 ± 1e-9 i
+MODULUS_TOLERANCE = 1e-6
+
+
+def _snap(lam: complex) -> complex:
+    """An eigenvalue with its rounding from a repeated root removed: imaginary parts and
+    distances of the modulus from 1 below :data:`MODULUS_TOLERANCE` set to exactly 0 and 1."""
+    re, im = lam.real, lam.imag
+    if abs(im) <= MODULUS_TOLERANCE:
+        im = 0.0
+    modulus = math.hypot(re, im)
+    if modulus > 0 and abs(modulus - 1.0) <= MODULUS_TOLERANCE:
+        re, im = re / modulus, im / modulus
+    return complex(re, im)
+
+
 @dataclass(frozen=True, eq=False)
 class Mode:
     """One mode of an AR(2) model (AC §11.3, eqs 11.10-11.13).
@@ -184,7 +202,7 @@ class Mode:
         """One line describing the mode, for reports."""
         kind = f"f = {self.frequency:.3g} Hz" if self.frequency > 0 else "no oscillation"
         parts = ", ".join(f"X[{i}] {w:.2f}" for i, w in self.dominant() if w >= 0.01)
-        state = "stable" if self.stable else "UNSTABLE"
+        state = "stable" if self.stable else ("marginal" if self.modulus == 1.0 else "UNSTABLE")
         return (f"|λ| = {self.modulus:.4f} ({state}), {kind}, β = {self.beta:.3g}/s "
                 f"(decay {self.decay_time:.3g} s); shape: {parts}")
 
@@ -281,6 +299,15 @@ class AR2:
     def spectral_radius(self) -> float:
         """Largest eigenvalue modulus of ``A``; the model is stable when it is below 1."""
         return float(np.abs(self.eigenvalues()).max())
+
+    def stability(self) -> str:
+        """``"stable"`` (every mode decays), ``"marginal"`` (the slowest neither decays nor
+        grows, e.g. constant velocity) or ``"UNSTABLE"``, with the spectral radius read to
+        :data:`MODULUS_TOLERANCE` (a repeated eigenvalue 1 comes out of ``eig`` as 1 ± 1e-8)."""
+        r = self.spectral_radius()
+        if abs(r - 1.0) <= MODULUS_TOLERANCE:
+            return "marginal"
+        return "stable" if r < 1.0 else "UNSTABLE"
 
     def is_stable(self) -> bool:
         """True when every mode decays (spectral radius < 1), so a steady state exists."""
@@ -407,7 +434,7 @@ class AR2:
         n, tau = self.nx, self.tau
         out = []
         for lam, vec in zip(vals, vecs.T):
-            lam = complex(lam)
+            lam = _snap(complex(lam))
             if lam.imag < 0:
                 continue  # represented by its conjugate
             x = np.asarray(vec[:n], dtype=complex)
@@ -417,7 +444,7 @@ class AR2:
             if lam.imag == 0:
                 x = x.real.astype(complex)
             modulus = abs(lam)
-            beta = math.inf if modulus == 0 else -math.log(modulus) / tau
+            beta = math.inf if modulus == 0 else 0.0 if modulus == 1.0 else -math.log(modulus) / tau
             if lam.imag > 0:
                 freq = math.atan2(lam.imag, lam.real) / (2 * math.pi * tau)
             elif lam.real < 0:
