@@ -381,7 +381,8 @@ def _video_overrides(fps, start, end, step) -> dict:
 @click.option("--particles", type=click.IntRange(min=1), help="CONDENSATION sample-set size N (condensation.particles).")
 @click.option("--threads", type=click.IntRange(min=0, max=256),
               help="Threads that score CONDENSATION's samples (condensation.threads; 0 = every core from 300 "
-                   "samples up, one below). The results do not depend on it.")
+                   "samples up with the discriminant, 2000 with the numpy models, one below). The results "
+                   "do not depend on it.")
 @click.option("--seed", type=click.IntRange(min=0), help="Random seed (same seed, same numbers).")
 @click.option("-o", "--outdir", type=click.Path(file_okay=False), default="trackcli-out", show_default=True,
               help="Folder for the outputs.")

@@ -62,6 +62,9 @@ LOGLIK_BLOCK = 2048
 #: (measured on the default observation model, whose kernel releases the GIL: at N = 500 two
 #: threads took a step from 2.3 to 1.9 ms, at N = 100 they gained nothing)
 PARALLEL_MIN = 300
+#: the same for observation models written with numpy (``clutter``, ``truncated``): their many
+#: short array passes hold the GIL in between, and two threads gained only from N = 2000 up
+PARALLEL_MIN_NUMPY = 2000
 
 # ---------------------------------------------------------------------------------------------
 # Weights
@@ -305,7 +308,8 @@ class StepInfo(NamedTuple):
 
 
 def weigh(samples: np.ndarray, loglik: Callable[[np.ndarray], np.ndarray],
-          base: np.ndarray | float = 0.0, *, threads: int = 1) -> tuple[np.ndarray, np.ndarray, bool]:
+          base: np.ndarray | float = 0.0, *, threads: int = 1,
+          parallel_min: int = PARALLEL_MIN) -> tuple[np.ndarray, np.ndarray, bool]:
     """The weighting step of AC Fig 12.6: ``log π = base + log p(Z | X)``, normalised.
 
     ``loglik`` is called on blocks of at most :data:`LOGLIK_BLOCK` samples (bounded
@@ -314,14 +318,14 @@ def weigh(samples: np.ndarray, loglik: Callable[[np.ndarray], np.ndarray],
     ``threads`` ways and scored in a thread pool (``loglik`` must be a pure function of its
     samples; OpenCV and numpy release the GIL in the heavy parts); the result is the same
     array to the bit.  ``threads = 0`` means :func:`automatic_threads` for at least
-    :data:`PARALLEL_MIN` samples and one thread below that.  Returns ``(log-likelihoods (n,), normalised log-weights (n,),
+    ``parallel_min`` samples and one thread below that.  Returns ``(log-likelihoods (n,), normalised log-weights (n,),
     degenerate)``; ``degenerate`` is True when every weight was zero and the weights were
     made uniform.
     """
     n = samples.shape[0]
     ll = np.empty(n)
     if threads == 0:
-        threads = automatic_threads() if n >= PARALLEL_MIN else 1
+        threads = automatic_threads() if n >= parallel_min else 1
     size = LOGLIK_BLOCK if threads <= 1 else max(1, min(LOGLIK_BLOCK, -(-n // threads)))
     starts = range(0, n, size)
 
@@ -376,6 +380,7 @@ def step(
     propose: Callable[[np.ndarray, np.ndarray, np.random.Generator], tuple[np.ndarray, np.ndarray, np.ndarray]]
     | None = None,
     threads: int = 1,
+    parallel_min: int = PARALLEL_MIN,
     motion: Callable[[np.ndarray, np.ndarray, np.random.Generator, np.ndarray],
                      tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None,
 ) -> tuple[ParticleSet, StepInfo]:
@@ -412,6 +417,8 @@ def step(
         weighted set a fair sample of the posterior (zeros for a mixture prior sampled as it is).
     threads : int
         Threads that score the samples (:func:`weigh`); the result does not depend on it.
+    parallel_min : int
+        With ``threads = 0``, the sample count from which every core scores (:func:`weigh`).
     motion : callable, optional
         Replaces the AR(2) prediction: ``motion(prev, cur, rng, parents)`` with the selected
         samples' ``X_{k-2}, X_{k-1}`` and their parents' indices in ``particles`` returns
@@ -457,7 +464,7 @@ def step(
     if propose is not None:
         cur, new, correction = propose(cur, new, rng)
         base = base + np.asarray(correction, dtype=np.float64)
-    ll, out_log_w, degenerate = weigh(new, loglik, base, threads=threads)
+    ll, out_log_w, degenerate = weigh(new, loglik, base, threads=threads, parallel_min=parallel_min)
     out = ParticleSet(prev=cur, cur=new, log_w=out_log_w)
     info = StepInfo(
         ess=effective_sample_size(np.exp(out_log_w)),

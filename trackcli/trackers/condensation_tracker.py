@@ -153,6 +153,8 @@ class CondensationTracker(Tracker):
         self.lost_run = 0  # frames lost in a row
         self.k = 0
         self.threads = c.threads  # 0: automatic (see trackcli.trackers.condensation.weigh)
+        # the compiled discriminant releases the GIL; the numpy models gain from threads only at large N
+        self.parallel_min = cond.PARALLEL_MIN if c.likelihood == "discriminant" else cond.PARALLEL_MIN_NUMPY
 
     def _start(self, frame: FrameData) -> None:
         c, space = self.settings.condensation, self.space
@@ -197,6 +199,7 @@ class CondensationTracker(Tracker):
             particles, info = cond.step(self.particles, self.dynamics, loglik, self.rng, n_out=self.schedule(self.k),
                                         scheme=c.resampling, ess_threshold=c.ess_threshold,
                                         propose=self._proposal(ev, frame), threads=self.threads,
+                                        parallel_min=self.parallel_min,
                                         motion=self.labels if self.mixed is not None else None)
             ess = info.ess
             ll = info.loglik
