@@ -475,10 +475,10 @@ def test_unwritable_output_is_a_clear_error(tmp_path):
 
 def test_histogram_rows_kept_compactly_give_the_same_heat_map():
     """``track`` keeps each frame's histogram as its heat-map row (uint8); the image is the same."""
-    from trackcli.run.clips import histogram_row
+    from trackcli.io.recording import histogram_grey
 
     rng = np.random.default_rng(3)
     m = rng.random((40, 64)) * rng.choice([0.0, 1e-6, 1.0, 1e6], size=(40, 1))
-    rows = np.vstack([histogram_row(r) for r in m])
+    rows = np.vstack([histogram_grey(r[None])[0] for r in m])
     assert rows.dtype == np.uint8
     np.testing.assert_array_equal(histogram_image(rows), histogram_image(m))

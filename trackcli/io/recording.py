@@ -141,6 +141,14 @@ def histogram_image(matrix: np.ndarray) -> np.ndarray:
     """
     import cv2
 
+    bgr = cv2.applyColorMap(histogram_grey(matrix), cv2.COLORMAP_VIRIDIS)
+    return np.ascontiguousarray(bgr[..., ::-1])
+
+
+def histogram_grey(matrix: np.ndarray) -> np.ndarray:
+    """The grey levels of :func:`histogram_image`: each row of ``matrix`` (T, B) scaled to its
+    own maximum, 0–255 as uint8 (rows whose maximum is 0 are 0).  Rows of grey levels are their
+    own grey levels, so a long run can keep these (B bytes a frame) instead of the counts."""
     m = np.asarray(matrix, dtype=float)
     if m.ndim != 2 or m.shape[0] < 1 or m.shape[1] < 1:
         raise DataError(f"histogram matrix must have shape (T, B) with T, B >= 1, got {m.shape}")
@@ -148,9 +156,7 @@ def histogram_image(matrix: np.ndarray) -> np.ndarray:
         raise DataError("histogram matrix must be finite and non-negative")
     top = m.max(axis=1, keepdims=True)
     scaled = np.divide(m, top, out=np.zeros_like(m), where=top > 0)
-    gray = np.rint(255.0 * scaled).astype(np.uint8)
-    bgr = cv2.applyColorMap(gray, cv2.COLORMAP_VIRIDIS)
-    return np.ascontiguousarray(bgr[..., ::-1])
+    return np.rint(255.0 * scaled).astype(np.uint8)
 
 
 def frame_storage(mode: str, *, codec: str, embeddable: bool, whole_clip: bool) -> tuple[str, str]:
@@ -531,23 +537,19 @@ class Recording:
         return self
 
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
-        if self._stream is None:
+        stream = self._stream
+        if stream is None:
             return
         try:
-            if exc_type is None:
-                self.flush_overlays(last=True)
-        except BaseException:
-            self._stream.disconnect()
-            self._stream = None
-            self.tmp_path.unlink(missing_ok=True)
-            raise
-        self._batch = None
-        stream, self._stream = self._stream, None
-        try:
-            if exc_type is None and self._kind is not None:
-                stream.send_blueprint(make_blueprint(self._kind, self.content()), make_active=True,
-                                      make_default=True)
-            stream.disconnect()
+            try:
+                if exc_type is None:
+                    self.flush_overlays(last=True)
+                    if self._kind is not None:
+                        stream.send_blueprint(make_blueprint(self._kind, self.content()), make_active=True,
+                                              make_default=True)
+            finally:
+                self._stream, self._batch = None, None
+                stream.disconnect()
             if exc_type is None:
                 if not self.tmp_path.exists():
                     raise TrackcliError(f"Rerun wrote nothing for recording {self.path}")
@@ -949,8 +951,7 @@ class Recording:
             e = _edges(x_edges, c.shape[0])
             # the bins' places and widths are logged again only when they change (the viewer
             # shows the latest ones): converting them took half the time of every frame's chart
-            last = self._bar_edges.get(entity)
-            if last is None or last.shape != e.shape or not np.array_equal(last, e):
+            if not np.array_equal(self._bar_edges.get(entity), e):
                 kwargs["abscissa"] = 0.5 * (e[:-1] + e[1:])
                 kwargs["widths"] = np.diff(e).astype(np.float32)
                 self._bar_edges[entity] = e
@@ -1075,5 +1076,5 @@ def _edges(x_edges: Any, bins: int) -> np.ndarray:
 
 __all__ = [
     "BLUEPRINTS", "HISTOGRAM", "PARAMS", "SERIES", "TEXT_LEVELS", "TEXT_LOG", "VIDEO",
-    "FrameLogger", "Recording", "histogram_image", "make_blueprint", "weight_colors",
+    "FrameLogger", "Recording", "histogram_grey", "histogram_image", "make_blueprint", "weight_colors",
 ]

@@ -271,6 +271,25 @@ def _colour_profile(app: Appearance) -> tuple[np.ndarray, np.ndarray]:
     return u, weights
 
 
+def _normal_terms(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float,
+                  sigma: float, miss: float) -> tuple[np.ndarray, np.ndarray, tuple[int, ...], tuple[np.ndarray, ...]]:
+    """The normals flattened, ``(pts, nrm, lead, terms)``, with the discriminant's terms per
+    normal of the curve (M,): ``h (λ - λ_in)``, ``log(λ_in / λ)`` and, as float32,
+    ``(1 - q) / (√(2π) σ λ)`` inside and outside, for the densities of features of each
+    normal's accepted polarity (halved where a polarity was learned)."""
+    pts, nrm, lead = _as_normals(points, normals)
+    m = app.polarity.size
+    if not lead or lead[-1] != m:
+        raise DataError(f"points: expected shape (..., {m}, 2) for {m} normals, got {lead + (2,)}")
+    half = np.where(app.polarity != 0, 0.5, 1.0)
+    lam_out = ev.density * half
+    lam_in = app.lambda_in * half
+    c = (1.0 - miss) / (math.sqrt(2.0 * math.pi) * sigma)
+    terms = (h * (lam_out - lam_in), np.log(lam_in / lam_out), (c / lam_in).astype(np.float32),
+             (c / lam_out).astype(np.float32))
+    return pts, nrm, lead, terms
+
+
 def per_normal(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float,
                sigma: float, threshold: float, miss: float) -> tuple[np.ndarray, np.ndarray]:
     """``(log D_i, c_i)`` of every normal of every curve, each of the leading shape (..., M).
@@ -279,51 +298,33 @@ def per_normal(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: 
     (one pass per normal, the GIL released); :func:`per_normal_reference` is the same
     computation with numpy and ``cv2.remap``.
     """
-    pts, nrm, lead = _as_normals(points, normals)
-    m = app.polarity.size
-    if not lead or lead[-1] != m:
-        raise DataError(f"points: expected shape (..., {m}, 2) for {m} normals, got {lead + (2,)}")
+    pts, nrm, lead, terms = _normal_terms(app, ev, points, normals, h=h, sigma=sigma, miss=miss)
     pts = np.ascontiguousarray(pts, dtype=np.float32)
     nrm = np.ascontiguousarray(nrm, dtype=np.float32)
     if not (np.isfinite(pts).all() and np.isfinite(nrm).all()):
         raise DataError("points and normals must be finite (and within float32 range); got NaN or infinite coordinates")
     k_total = pts.shape[0]
-    # per normal of the curve: the densities of features of the accepted polarity, outside and inside
-    half = np.where(app.polarity != 0, 0.5, 1.0)
-    lam_out = ev.density * half
-    lam_in = app.lambda_in * half
-    c = (1.0 - miss) / (math.sqrt(2.0 * math.pi) * sigma)
+    base, log_ratio_in, inv_in, inv_out = terms
     consts = (np.ascontiguousarray(app.polarity, np.int8), int(math.ceil(float(h))), np.float32(h),
-              np.float32(threshold), np.float32(-0.5 / sigma**2), (c / lam_in).astype(np.float32),
-              (c / lam_out).astype(np.float32), h * (lam_out - lam_in), np.log(lam_in / lam_out), float(miss))
+              np.float32(threshold), np.float32(-0.5 / sigma**2), inv_in, inv_out, base, log_ratio_in, float(miss))
     u_colour, weights = _colour_profile(app)
     cmap = _as_image(ev.cmap)
     if cmap.shape != ev.fimg.shape:
         raise DataError(f"colour map: expected the feature image's shape {ev.fimg.shape}, got {cmap.shape}")
     log_d = np.empty(k_total)
     colour = np.empty(k_total, np.float32)
-    discriminant_normals(ev.fimg, cmap, pts, nrm, 0, *consts, u_colour, weights, log_d, colour)
+    discriminant_normals(ev.fimg, cmap, pts, nrm, *consts, u_colour, weights, log_d, colour)
     return log_d.reshape(lead), colour.astype(np.float64).reshape(lead)
 
 
 def per_normal_reference(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float,
                          sigma: float, threshold: float, miss: float) -> tuple[np.ndarray, np.ndarray]:
     """:func:`per_normal` written with numpy and OpenCV (the reference the kernel is tested against)."""
-    pts, nrm, lead = _as_normals(points, normals)
-    m = app.polarity.size
-    if not lead or lead[-1] != m:
-        raise DataError(f"points: expected shape (..., {m}, 2) for {m} normals, got {lead + (2,)}")
+    pts, nrm, lead, terms = _normal_terms(app, ev, points, normals, h=h, sigma=sigma, miss=miss)
     k_total = pts.shape[0]
-    pol_all = np.tile(app.polarity, k_total // m)
-    # per normal: the densities of features of the accepted polarity, outside and inside
-    half = np.where(pol_all != 0, 0.5, 1.0)
-    lam_out = ev.density * half
-    lam_in = app.lambda_in * half
-    log_ratio_in = np.log(lam_in / lam_out)
-    base = h * (lam_out - lam_in)
-    c = (1.0 - miss) / (math.sqrt(2.0 * math.pi) * sigma)
-    inv_out = (c / lam_out).astype(np.float32)
-    inv_in = (c / lam_in).astype(np.float32)
+    curves = k_total // app.polarity.size
+    pol_all = np.tile(app.polarity, curves)
+    base, log_ratio_in, inv_in, inv_out = (np.tile(t, curves) for t in terms)
     scale = np.float32(-0.5 / sigma**2)
     log_d = np.empty(k_total)
     for k0, k1, row, nu, _s, sgn in _scan_chunks(ev.fimg, pts, nrm, float(h), threshold, 0, with_sign=True):

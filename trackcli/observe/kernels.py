@@ -74,7 +74,7 @@ def _bilinear_zero(flat, w, h, x, y):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def discriminant_normals(fimg, cmap, pts, nrm, first, polarity, half, limit, threshold, scale, inv_in, inv_out,
+def discriminant_normals(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale, inv_in, inv_out,
                          base, log_ratio_in, miss, colour_u, colour_w, log_d, colour):  # pragma: no cover - compiled
     """``log D_i`` and the colour term ``c_i`` of K normals, written into ``log_d`` and ``colour`` (K,).
 
@@ -83,9 +83,7 @@ def discriminant_normals(fimg, cmap, pts, nrm, first, polarity, half, limit, thr
     fimg, cmap : float32 (H, W)
         Feature image and colour log-ratio map.
     pts, nrm : float32 (K, 2)
-        Base points and unit outward normals, finite.
-    first : int
-        Normal ``k`` is normal ``(first + k) % M`` of its curve.
+        Base points and unit outward normals, finite; whole curves of M normals each.
     polarity : int8 (M,)
         Accepted sign of the intensity difference per normal of the curve (0 = either).
     half : int
@@ -127,7 +125,7 @@ def discriminant_normals(fimg, cmap, pts, nrm, first, polarity, half, limit, thr
     wu = uintp(w_img)
     x_max = np.float32(w_img - 1)
     y_max = np.float32(h_img - 1)
-    i = first % m
+    i = 0  # normal k is normal k % M of its curve
     for k in range(k_total):
         px = pts[k, 0]
         py = pts[k, 1]

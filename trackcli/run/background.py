@@ -104,25 +104,21 @@ class BackgroundRecorder:
     #: frames between two flushes of the recording to its file, which keep Rerun's buffers
     #: from growing with the clip
     FLUSH_EVERY = 200
-    #: frames whose images and overlays are sent together as columns (when the recording
-    #: can batch them: :meth:`trackcli.io.recording.Recording.batch_overlays`)
+    #: frames whose images and overlays are sent together as columns
+    #: (:meth:`trackcli.io.recording.Recording.batch_overlays`)
     BATCH_FRAMES = 25
 
     def _record(self, image: Any, r: Any) -> None:
         t0 = time.perf_counter()
-        if self._count == 0 and hasattr(self._rec, "batch_overlays"):
+        if self._count == 0:
             self._rec.batch_overlays()
         self._log(self._rec, self._log_frame, image, r)
         self._count += 1
-        if self._count % self.BATCH_FRAMES == 0 and hasattr(self._rec, "flush_overlays"):
+        if self._count % self.BATCH_FRAMES == 0:
             self._rec.flush_overlays()
         if self._count % self.FLUSH_EVERY == 0:
             self._rec.stream.flush()
         self.seconds += time.perf_counter() - t0
-
-    def _last(self) -> None:
-        if hasattr(self._rec, "flush_overlays"):
-            self._rec.flush_overlays(last=True)
 
     def submit(self, image: Any, r: Any) -> None:
         self._pending.append(self._pool.submit(self._record, image, r))
@@ -132,7 +128,7 @@ class BackgroundRecorder:
     def finish(self) -> None:
         """Wait for every frame (and send the frames still held in a batch); raise the first error."""
         try:
-            self._pending.append(self._pool.submit(self._last))
+            self._pending.append(self._pool.submit(self._rec.flush_overlays, last=True))
             while self._pending:
                 self._pending.popleft().result()
         finally:

@@ -185,7 +185,7 @@ def run_clip(
 
     try:
         if rrd_path is not None:
-            from trackcli.io.recording import Recording
+            from trackcli.io.recording import Recording, histogram_grey
 
             rec_ctx = Recording(rrd_path, app_id="trackcli", recording_id=recording_id, blueprint="track",
                                 properties=properties)
@@ -226,7 +226,7 @@ def run_clip(
                     if extra_names:
                         extras.extend(float(r.extra.get(e, np.nan)) for e in extra_names)
                     if "histogram" in r.display:
-                        hist_rows.append(histogram_row(r.display["histogram"]))
+                        hist_rows.append(histogram_grey(np.asarray(r.display["histogram"])[None])[0])
                         hist_edges = r.display["hist_edges"]
                 if recorder is not None:
                     recorder.submit(frames.current, r)
@@ -304,17 +304,6 @@ def _record_frame(rec: Any, log_frame: Any, frame: Any, r: Any) -> None:
             rec.log_contour(path, data, color=color, width=2.0)
         else:
             raise DataError(f"display overlay {path}: unknown kind {kind!r} (points, segments or contour)")
-
-
-def histogram_row(counts: Any) -> np.ndarray:
-    """One frame's row of the histogram heat-map: the counts scaled to their maximum, as grey
-    levels 0–255 (what :func:`trackcli.io.recording.histogram_image` makes of the row; kept
-    instead of the counts, 64 bytes a frame)."""
-    c = np.asarray(counts, dtype=float)
-    top = c.max() if c.size else 0.0
-    if not (np.isfinite(top) and top > 0):
-        return np.zeros(c.shape, np.uint8)
-    return np.rint(255.0 * np.clip(c / top, 0.0, 1.0)).astype(np.uint8)
 
 
 def _record_series(rec: Any, s: dict[str, Any], hist_rows: list, hist_edges: Any) -> None:
