@@ -263,6 +263,63 @@ def test_box_without_an_object_falls_back_to_the_inscribed_ellipse(caplog):
     assert draw.mask_iou(mask, inscribed) >= 0.95
 
 
+def swan_scene(rng: np.random.Generator):
+    """A dark swan-like object (body, neck, head) on water, with a light wall behind it that
+    runs through the box between the head and the back and on beyond the box on both sides;
+    returns (image, true mask, tight box, the mask with the wall inside the box leaked in)."""
+    w, h = 320, 240
+    img = np.empty((h, w, 3))
+    img[:] = (60, 110, 70)  # plants
+    img[55:115] = (185, 190, 195)  # the wall
+    img[115:] = (70, 95, 80)  # water
+    img += rng.normal(0, 6, img.shape)
+    obj = np.zeros((h, w), np.uint8)
+    cv2.ellipse(obj, (140, 165), (75, 35), 0, 0, 360, 255, -1)
+    cv2.rectangle(obj, (195, 50), (215, 160), 255, -1)
+    cv2.ellipse(obj, (212, 48), (18, 12), 0, 0, 360, 255, -1)
+    img[obj > 0] = np.array([35.0, 30.0, 30.0]) + rng.normal(0, 6, (int((obj > 0).sum()), 3))
+    img = cv2.GaussianBlur(np.clip(img, 0, 255).astype(np.uint8), (3, 3), 0.8)
+    ys, xs = np.nonzero(obj)
+    box = (int(xs.min()), int(ys.min()), int(xs.max() - xs.min() + 1), int(ys.max() - ys.min() + 1))
+    leaky = obj.copy()
+    x0, y0, bw, bh = box
+    leaky[57:113, x0 + 2:x0 + bw - 2] = 255  # the wall inside the box, up to 2 px from its edge
+    return img, obj, box, leaky
+
+
+def test_background_leaking_in_through_the_box_edge_is_taken_out():
+    for seed in range(3):
+        img, obj, box, leaky = swan_scene(np.random.default_rng(seed))
+        lab = cv2.cvtColor(cv2.GaussianBlur(img, (5, 5), 0), cv2.COLOR_BGR2Lab)
+        seeds = np.array(draw._leak_seeds(lab, leaky, box))
+        # the leak points lie on the wall, at the box's left and right edges
+        assert len(seeds) > 20
+        assert np.all((seeds[:, 1] > 55) & (seeds[:, 1] < 115))
+        assert np.all((seeds[:, 0] < box[0] + 20) | (seeds[:, 0] > box[0] + box[2] - 20))
+        assert draw.mask_iou(leaky, obj) < 0.8
+        fixed = draw._unleak(img, lab, leaky, box, 5)
+        assert fixed is not None and draw.mask_iou(fixed, obj) > 0.95
+        # the true mask has no leak: its edges differ from what lies beyond the box
+        assert draw._leak_seeds(lab, obj, box) == []
+        assert draw._unleak(img, lab, obj, box, 5) is None
+
+
+def test_an_object_cut_by_the_box_is_not_taken_out_as_a_leak():
+    """A box drawn across the object: the body goes on beyond the box's left edge, so the
+    edge test finds it "leaking"; what comes back must still be the object in the box (GrabCut
+    learns the body's colour from the neck and takes it back; were it taken out, the mask would
+    shrink to the neck and be refused)."""
+    img, obj, box, _ = swan_scene(np.random.default_rng(0))
+    x0, y0, bw, bh = box
+    cut = (x0 + 40, y0, bw - 40, bh)
+    inside = np.zeros_like(obj)
+    inside[y0:y0 + bh, x0 + 40:x0 + bw] = obj[y0:y0 + bh, x0 + 40:x0 + bw]
+    lab = cv2.cvtColor(cv2.GaussianBlur(img, (5, 5), 0), cv2.COLOR_BGR2Lab)
+    assert len(draw._leak_seeds(lab, inside, cut)) > 0
+    out = draw._unleak(img, lab, inside, cut, 5)
+    assert out is None or draw.mask_iou(out, inside) > 0.9
+
+
 @pytest.mark.parametrize(
     ("box", "text"),
     [((10.0, 10.0, 0.0, 20.0), "width and height must be positive"),
@@ -356,3 +413,14 @@ def test_box_segmentation_in_clutter_beats_grabcut_on_the_whole_frame():
     assert min(n - o for n, o in zip(new, old)) >= -1e-9
     assert np.mean(new) >= np.mean(old) + 0.03  # measured: 0.851 -> 0.903
     assert sum(n > o + 0.05 for n, o in zip(new, old)) >= 3
+
+
+def test_a_mask_without_its_leak_that_lost_the_box_extent_is_refused(monkeypatch):
+    img, obj, box, leaky = swan_scene(np.random.default_rng(1))
+    lab = cv2.cvtColor(cv2.GaussianBlur(img, (5, 5), 0), cv2.COLOR_BGR2Lab)
+    neck = np.zeros_like(obj)
+    neck[40:160, 195:216] = 255  # what a re-run that also took the body out would leave
+    monkeypatch.setattr(draw, "_run_grabcut", lambda *args: neck.copy())
+    assert draw._unleak(img, lab, leaky, box, 5) is None
+    monkeypatch.setattr(draw, "_run_grabcut", lambda *args: obj.copy())
+    assert draw.mask_iou(draw._unleak(img, lab, leaky, box, 5), obj) > 0.99
