@@ -4,7 +4,6 @@ learning from labelled ranges, and the bouncing-ball experiment on the sample cl
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest

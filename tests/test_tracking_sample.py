@@ -31,12 +31,11 @@ from trackcli.io.config import load_settings
 from trackcli.dynamics.ar2 import AR2
 from trackcli.run.evaluate import evaluate, load_track, score_frames
 from trackcli.run.evaluate import load_truth as load_eval_truth
-from trackcli.dynamics.model import load_model, place_dynamics, place_space, translation_split
+from trackcli.dynamics.model import load_model, place_dynamics, translation_split
 from trackcli.run.clips import tracking_setup
 from trackcli.sample_data import load_truth
 from trackcli.shapes.shape_space import similarity
 from trackcli.shapes.spline import SplineBasis
-from trackcli.shapes.template import load_template
 from trackcli.trackers.condensation_tracker import track_condensation
 from trackcli.io.video import open_video
 
