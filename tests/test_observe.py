@@ -321,3 +321,51 @@ def test_colour_map_is_the_lookup_of_the_hsv_bins():
         np.testing.assert_array_equal(got, want)
     grey = (rng.random((12, 9)) * 256).astype(np.uint8)  # a grey frame is taken as BGR with equal channels
     np.testing.assert_array_equal(app.colour_map(grey), cv2.LUT(observe.hsv_bins(grey), lut.reshape(1, -1)))
+
+
+def test_visible_share_counts_the_points_inside_the_frame():
+    pts = np.array([[0.0, 0.0], [9.0, 4.0], [9.5, 2.0], [-0.1, 2.0], [5.0, 5.0]])
+    assert observe.visible_share(pts, (5, 10, 3)) == pytest.approx(0.4)
+
+
+def test_confidence_falls_to_zero_as_the_curve_leaves_the_frame():
+    full = observe.confidence(2.0, 0.0, reference=2.0)
+    assert observe.confidence(2.0, 0.0, reference=2.0, visible=observe.VISIBLE_FULL) == full
+    mid = 0.5 * (observe.VISIBLE_FULL + observe.VISIBLE_NONE)
+    assert observe.confidence(2.0, 0.0, reference=2.0, visible=mid) == pytest.approx(0.5 * full)
+    assert observe.confidence(2.0, 0.0, reference=2.0, visible=observe.VISIBLE_NONE) == 0.0
+
+
+def test_an_object_mostly_beyond_the_frame_edge_is_not_held():
+    """The template's object at the frame's right edge with a sixth of its outline inside: the normals
+    that reach back into the frame still find its edge, but the estimate is called lost."""
+    space, judge, sampler, _ = ellipse_scene(0)
+    w = W
+    img = object_frame(np.random.default_rng(7), centre=(w + 28.0, 120.0))
+    m = MeasurementSettings()
+    fimg = measure.feature_image(img, sigma=m.smoothing, edge_sigma=m.edge_sigma)
+    ev = judge.evidence(img, fimg, space.origin + np.array([w + 28.0 - 240.0, 0.0]))
+    X = np.zeros(space.Nx)
+    X[0] = w + 28.0 - 240.0
+    pts, nrm = space.points_normals(X, sampler)
+    assert 0.0 < observe.visible_share(pts, img.shape) < 0.2
+    conf, _, _ = judge.confidence(ev, pts, nrm, 0.0)
+    assert conf == 0.0
+    # the same curve on the object in full view is held
+    img = object_frame(np.random.default_rng(7))
+    fimg = measure.feature_image(img, sigma=m.smoothing, edge_sigma=m.edge_sigma)
+    pts, nrm = space.points_normals(np.zeros(space.Nx), sampler)
+    assert judge.confidence(judge.evidence(img, fimg, space.origin), pts, nrm, 0.0)[0] > 0.9
+
+
+def test_colour_peaks_read_nothing_beyond_the_frame_edge():
+    """A thin object-coloured line along the frame's border (a video's dark edge) is not an
+    object-sized region; an object-sized blob of weaker colour evidence inside the frame is."""
+    cmap = np.zeros((240, 320), np.float32)
+    cmap[-4:, :] = 3.0  # a 4-px line along the bottom edge
+    cv2.circle(cmap, (160, 100), 14, 1.0, -1)  # the object, 28 px across
+    centres, strengths = observe.colour_peaks(cmap, 28.0)
+    assert len(centres) >= 1
+    np.testing.assert_allclose(centres[0], (160, 100), atol=4)
+    # the line is a weak candidate at most: its 4 rows over an object-sized box
+    assert all(st < 0.6 * strengths[0] for c, st in zip(centres, strengths) if c[1] > 200)

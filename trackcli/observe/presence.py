@@ -74,4 +74,6 @@ class Presence:
         total = s * pts.shape[0]
         if posterior_score is not None and math.isfinite(posterior_score):
             s = max(s, posterior_score)
-        return observe.confidence(s, spread, reference=self.reference, centre=self.centre), e * pts.shape[0], total
+        visible = observe.visible_share(pts, ev.fimg.shape)
+        conf = observe.confidence(s, spread, reference=self.reference, centre=self.centre, visible=visible)
+        return conf, e * pts.shape[0], total
