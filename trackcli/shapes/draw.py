@@ -336,9 +336,9 @@ def _leak_seeds(lab: np.ndarray, mask: np.ndarray, rect) -> list[tuple[int, int]
     if x0 + w + inset + 4 <= w_img:
         sides.append((np.full(h, x0 + w - 1 - inset), ys, gap, 0))
     seeds: list[tuple[int, int]] = []
+    k = np.arange(gap + 1)
     for px, py, dx, dy in sides:
         # the profile across the edge, from the inner probe to the outer one
-        k = np.arange(gap + 1)
         line = lab[py[:, None] + np.sign(dy) * k, px[:, None] + np.sign(dx) * k].astype(np.float32)
         jumps = np.abs(np.diff(line, axis=1)).max(axis=(1, 2))
         same = ((mask[py, px] > 0) & (np.linalg.norm(line[:, 0] - line[:, -1], axis=1) < LEAK_COLOUR)
@@ -383,15 +383,11 @@ def _unleak(image_bgr: np.ndarray, lab: np.ndarray, mask: np.ndarray, rect, iter
     if not (labels == cv2.GC_PR_FGD).any():
         return None
     out = _clean_mask(_run_grabcut(image_bgr, labels, None, iterations, cv2.GC_INIT_WITH_MASK), rect)
-    if out is None or np.any(_extent(out) < LEAK_EXTENT * _extent(mask)):
-        return None  # the box was drawn around the object: taking out a leak must not shrink it
-    return out
-
-
-def _extent(mask: np.ndarray) -> np.ndarray:
-    """Width and height of the bounding box of a mask's nonzero pixels."""
-    ys, xs = np.nonzero(mask)
-    return np.array([xs.max() - xs.min() + 1, ys.max() - ys.min() + 1], float)
+    if out is None:
+        return None
+    # the box was drawn around the object: taking out a leak must not shrink it
+    kept, before = np.array(cv2.boundingRect(out)[2:]), np.array(cv2.boundingRect(mask)[2:])
+    return None if np.any(kept < LEAK_EXTENT * before) else out
 
 
 def polygon_mask(points: np.ndarray, frame_size: tuple[int, int]) -> np.ndarray:
