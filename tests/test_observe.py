@@ -254,7 +254,7 @@ def test_compiled_per_normal_agrees_with_the_numpy_reference(seed):
     X[40:80, 1] = -rng.uniform(70, 150, 40)  # across the top edge
     X[80:85, 0] = rng.uniform(1e3, 1e6, 5)  # far outside
     pts, nrm = space.points_normals(X, sampler)
-    for h in (judge.h, 4.3):
+    for h in (judge.h, 4.3, 40.0):  # 40: more candidate maxima than one word of the kernel
         got = observe.per_normal(app, ev, pts, nrm, h=h, sigma=judge.sigma, threshold=judge.threshold,
                                  miss=judge.miss)
         want = observe.per_normal_reference(app, ev, pts, nrm, h=h, sigma=judge.sigma,
@@ -265,6 +265,28 @@ def test_compiled_per_normal_agrees_with_the_numpy_reference(seed):
             # about 1e-5 grey levels), which can, rarely, decide a tie between neighbours
             close = np.isclose(g, w, rtol=1e-4, atol=1e-4)
             assert close.mean() >= 0.998, np.argwhere(~close)[:5]
+        # the curves' scores, summed in the kernel, are the sums of the per-normal terms
+        log_d, colour = got
+        want_score = (log_d + judge.colour_weight * colour).sum(axis=-1)
+        got_score = observe.score(app, ev, pts, nrm, h=h, sigma=judge.sigma, threshold=judge.threshold,
+                                  miss=judge.miss, colour_weight=judge.colour_weight)
+        np.testing.assert_allclose(got_score, want_score, rtol=1e-12, atol=1e-9)
+
+
+def test_curve_scores_survive_a_product_beyond_the_float_range():
+    """The kernel takes one log of a curve's product of q + Σ g / (√(2π) σ λ); with densities
+    so small that each factor is ~1e30, the product of 24 leaves the float range unless it is
+    rescaled on the way."""
+    space, judge, sampler, ev = ellipse_scene(0)
+    pts, nrm = space.points_normals(np.zeros((3, 4)), sampler)
+    app = dataclasses.replace(judge.app, lambda_in=1e-30)
+    ev = dataclasses.replace(ev, density=1e-30)
+    kw = dict(h=judge.h, sigma=judge.sigma, threshold=judge.threshold, miss=judge.miss)
+    log_d, colour = observe.per_normal(app, ev, pts, nrm, **kw)
+    assert log_d.max() > math.log(1e25)  # the edge's features make factors far beyond 1e150 ** (1 / 24)
+    got = observe.score(app, ev, pts, nrm, colour_weight=judge.colour_weight, **kw)
+    assert np.isfinite(got).all()
+    np.testing.assert_allclose(got, (log_d + judge.colour_weight * colour).sum(axis=-1), rtol=1e-12)
 
 
 def test_compiled_per_normal_rejects_non_finite_curves():

@@ -66,12 +66,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
 
 from trackcli.errors import DataError
-from trackcli.observe.kernels import colour_lookup, count_line_features, discriminant_normals
+from trackcli.observe.kernels import colour_lookup, count_line_features, discriminant_curves, discriminant_normals
 from trackcli.observe.measure import _as_image, _as_normals, _remap_rows, _scan_chunks
 
 __all__ = ["Appearance", "FrameEvidence", "colour_peaks", "confidence", "evidence", "feature_density", "hsv_bins",
@@ -290,6 +291,24 @@ def _normal_terms(app: Appearance, ev: FrameEvidence, points: np.ndarray, normal
     return pts, nrm, lead, terms
 
 
+def _kernel_args(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float,
+                 sigma: float, threshold: float, miss: float) -> tuple[tuple[int, ...], tuple[Any, ...]]:
+    """``(lead, arguments)`` of the compiled kernels for these curves, checked."""
+    pts, nrm, lead, terms = _normal_terms(app, ev, points, normals, h=h, sigma=sigma, miss=miss)
+    pts = np.ascontiguousarray(pts, dtype=np.float32)
+    nrm = np.ascontiguousarray(nrm, dtype=np.float32)
+    if not (np.isfinite(pts).all() and np.isfinite(nrm).all()):
+        raise DataError("points and normals must be finite (and within float32 range); got NaN or infinite coordinates")
+    base, log_ratio_in, inv_in, inv_out = terms
+    u_colour, weights = _colour_profile(app)
+    cmap = _as_image(ev.cmap)
+    if cmap.shape != ev.fimg.shape:
+        raise DataError(f"colour map: expected the feature image's shape {ev.fimg.shape}, got {cmap.shape}")
+    return lead, (ev.fimg, cmap, pts, nrm, np.ascontiguousarray(app.polarity, np.int8), int(math.ceil(float(h))),
+                  np.float32(h), np.float32(threshold), np.float32(-0.5 / sigma**2), inv_in, inv_out, base,
+                  log_ratio_in, float(miss), u_colour, weights)
+
+
 def per_normal(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float,
                sigma: float, threshold: float, miss: float) -> tuple[np.ndarray, np.ndarray]:
     """``(log D_i, c_i)`` of every normal of every curve, each of the leading shape (..., M).
@@ -298,22 +317,11 @@ def per_normal(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: 
     (one pass per normal, the GIL released); :func:`per_normal_reference` is the same
     computation with numpy and ``cv2.remap``.
     """
-    pts, nrm, lead, terms = _normal_terms(app, ev, points, normals, h=h, sigma=sigma, miss=miss)
-    pts = np.ascontiguousarray(pts, dtype=np.float32)
-    nrm = np.ascontiguousarray(nrm, dtype=np.float32)
-    if not (np.isfinite(pts).all() and np.isfinite(nrm).all()):
-        raise DataError("points and normals must be finite (and within float32 range); got NaN or infinite coordinates")
-    k_total = pts.shape[0]
-    base, log_ratio_in, inv_in, inv_out = terms
-    consts = (np.ascontiguousarray(app.polarity, np.int8), int(math.ceil(float(h))), np.float32(h),
-              np.float32(threshold), np.float32(-0.5 / sigma**2), inv_in, inv_out, base, log_ratio_in, float(miss))
-    u_colour, weights = _colour_profile(app)
-    cmap = _as_image(ev.cmap)
-    if cmap.shape != ev.fimg.shape:
-        raise DataError(f"colour map: expected the feature image's shape {ev.fimg.shape}, got {cmap.shape}")
+    lead, args = _kernel_args(app, ev, points, normals, h=h, sigma=sigma, threshold=threshold, miss=miss)
+    k_total = args[2].shape[0]
     log_d = np.empty(k_total)
     colour = np.empty(k_total, np.float32)
-    discriminant_normals(ev.fimg, cmap, pts, nrm, *consts, u_colour, weights, log_d, colour)
+    discriminant_normals(*args, log_d, colour)
     return log_d.reshape(lead), colour.astype(np.float64).reshape(lead)
 
 
@@ -351,9 +359,15 @@ def per_normal_reference(app: Appearance, ev: FrameEvidence, points: np.ndarray,
 
 def score(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float, sigma: float,
           threshold: float, miss: float, colour_weight: float) -> np.ndarray:
-    """``log p(Z | X)`` (up to a constant) of every curve: ``Σ_i log D_i + w_c c_i``, shape (...)."""
-    log_d, colour = per_normal(app, ev, points, normals, h=h, sigma=sigma, threshold=threshold, miss=miss)
-    return (log_d + colour_weight * colour).sum(axis=-1)
+    """``log p(Z | X)`` (up to a constant) of every curve: ``Σ_i log D_i + w_c c_i``, shape (...).
+
+    The sum of :func:`per_normal`'s terms, computed by the compiled kernel
+    :func:`trackcli.observe.kernels.discriminant_curves` without writing them out.
+    """
+    lead, args = _kernel_args(app, ev, points, normals, h=h, sigma=sigma, threshold=threshold, miss=miss)
+    out = np.empty(int(np.prod(lead[:-1], dtype=np.int64)))
+    discriminant_curves(*args, float(colour_weight), out)
+    return out.reshape(lead[:-1])
 
 
 def presence(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float, sigma: float,

@@ -14,7 +14,11 @@ separate cores.
 Bilinear sampling is that of ``cv2.remap`` with ``INTER_LINEAR`` (OpenCV 5 interpolates at the
 exact float position): border pixels replicated for the feature image, 0 outside the colour
 map.  Along normals whose whole segment lies inside the image (nearly all) the profile is
-read without border tests, the coordinates first and the pixels in a second loop.
+read without border tests, the coordinates first and the pixels in a second loop.  The
+local maxima are found a word of 32 candidates at a time, as the bits of an integer (a loop of
+fixed length the compiler vectorises), and only the set bits are visited.  For the tracker's
+weights, :func:`discriminant_curves` sums each curve's terms in the kernel and takes one
+logarithm of the product of its normals' factors instead of one per normal.
 The numpy version, :func:`trackcli.observe.discriminant.per_normal_reference`, is kept as the
 reference the kernel is tested against.  The compiled code is cached next to this file
 (``cache=True``): only the first run after installation compiles it (a few seconds).
@@ -73,6 +77,166 @@ def _bilinear_zero(flat, w, h, x, y):  # pragma: no cover - compiled
     return top * (one - ay) + bottom * ay
 
 
+# Index of the lowest set bit of a power of two ``b``: ``_LOW_BIT[(b * _DEBRUIJN) >> 58]``.
+_DEBRUIJN = np.uint64(0x03F79D71B4CB0A89)
+_LOW_BIT = np.zeros(64, np.int64)
+for _b in range(64):
+    _LOW_BIT[(((1 << _b) * 0x03F79D71B4CB0A89) & 0xFFFFFFFFFFFFFFFF) >> 58] = _b
+del _b
+
+_WORD = 32  # candidate maxima tested per pass (one bit each of an integer)
+
+
+@njit(cache=True, nogil=True)
+def _discriminant(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale, inv_in, inv_out, base,
+                  log_ratio_in, miss, colour_u, colour_w, colour_weight, log_d, colour, out):  # pragma: no cover
+    """The kernels below: per normal into ``log_d`` and ``colour`` (when they have K entries),
+    summed per curve into ``out`` (when it has K / M)."""
+    h_img, w_img = fimg.shape
+    flat = fimg.reshape(-1)
+    cflat = cmap.reshape(-1)
+    m = polarity.shape[0]
+    per_normal = log_d.shape[0] > 0
+    n_prof = 2 * half + 4
+    n_diff = n_prof - 1
+    n_cand = 2 * half + 1
+    n_colour = colour_u.shape[0]
+    u0 = np.float32(half + 1.5)
+    c_lo = colour_u[0] if n_colour else np.float32(0.0)
+    c_hi = colour_u[n_colour - 1] if n_colour else np.float32(0.0)
+    idx = np.empty(n_prof, np.uint32)
+    ax = np.empty(n_prof, np.float32)
+    ay = np.empty(n_prof, np.float32)
+    prof = np.empty(n_prof, np.float32)
+    # differences, padded to whole words of candidates
+    d = np.zeros(-(-n_cand // _WORD) * _WORD + 2, np.float32)
+    s = np.zeros(d.shape[0], np.float32)
+    two = np.float32(2.0)
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
+    wu = uintp(w_img)
+    x_max = np.float32(w_img - 1)
+    y_max = np.float32(h_img - 1)
+    for c in range(pts.shape[0] // m):
+        linear = 0.0  # the curve's sum of h (lambda - lambda_in) + n_in log(lambda_in / lambda) ...
+        product = 1.0  # ... and the product of q + sum_n g(nu_n) / (sqrt(2 pi) sigma lambda) ...
+        col = 0.0  # ... and of c_i
+        for i in range(m):
+            k = c * m + i
+            px = pts[k, 0]
+            py = pts[k, 1]
+            nx = nrm[k, 0]
+            ny = nrm[k, 1]
+            # the profile at u = -u0, ..., u0 (step 1); when the segment's ends, and so all its
+            # samples and their right and lower neighbours, are inside the image, without border
+            # tests: coordinates first, then the pixels (float products and sums are monotone)
+            xa = px - nx * u0
+            xb = px + nx * u0
+            ya = py - ny * u0
+            yb = py + ny * u0
+            if min(xa, xb) >= zero and max(xa, xb) < x_max and min(ya, yb) >= zero and max(ya, yb) < y_max:
+                for j in range(n_prof):
+                    u = np.float32(j) - u0
+                    x = nx * u + px
+                    y = ny * u + py
+                    ix = np.int32(x)
+                    iy = np.int32(y)
+                    ax[j] = x - np.float32(ix)
+                    ay[j] = y - np.float32(iy)
+                    idx[j] = iy * np.int32(w_img) + ix
+                for j in range(n_prof):
+                    r0 = uintp(idx[j])
+                    a = ax[j]
+                    b = ay[j]
+                    top = flat[r0] * (one - a) + flat[r0 + uintp(1)] * a
+                    bottom = flat[r0 + wu] * (one - a) + flat[r0 + wu + uintp(1)] * a
+                    prof[j] = top * (one - b) + bottom * b
+            else:
+                for j in range(n_prof):
+                    u = np.float32(j) - u0
+                    prof[j] = _bilinear_replicate(flat, w_img, h_img, nx * u + px, ny * u + py)
+            for j in range(n_diff):  # D at u = -(half + 1) .. half + 1
+                d[j] = prof[j + 1] - prof[j]
+            for j in range(n_diff):
+                s[j] = abs(d[j])
+            # local maxima of |D| above the threshold, of the normal's polarity (sgn = 0: either):
+            # a word of candidates tested in a loop of fixed length that the compiler vectorises,
+            # into the bits of an integer, whose set bits (maxima are rare) are then scored; a
+            # longer profile is shifted down a word at a time
+            sgn = np.float32(polarity[i])
+            anyp = sgn == zero
+            total = 0.0
+            n_in = 0
+            c0 = 0
+            while c0 < n_cand:
+                left = n_cand - c0
+                bits = np.uint64(0)
+                for j in range(_WORD):
+                    a1 = s[j + 1]
+                    hit = ((a1 >= threshold) & (a1 > s[j]) & (a1 >= s[j + 2]) & (anyp | (sgn * d[j + 1] > zero))
+                           & (j < left))
+                    bits |= np.uint64(hit) << np.uint64(j)
+                while bits:
+                    low = bits & (~bits + np.uint64(1))
+                    bits ^= low
+                    j = _LOW_BIT[(low * _DEBRUIJN) >> np.uint64(58)]
+                    a0 = s[j]
+                    a1 = s[j + 1]
+                    a2 = s[j + 2]
+                    # parabola through the three values; a1 > a0 and a1 >= a2: curvature < 0
+                    off = np.float32(0.5) * (a0 - a2) / (a0 - two * a1 + a2)
+                    nu = np.float32(c0 + j - half) + off
+                    x = px + nu * nx
+                    y = py + nu * ny
+                    # only features within the search segment and inside the image count
+                    if abs(nu) <= limit and x >= zero and x <= x_max and y >= zero and y <= y_max:
+                        g = math.exp(nu * nu * scale)
+                        if nu < zero:
+                            total += g * inv_in[i]
+                            n_in += 1
+                        else:
+                            total += g * inv_out[i]
+                c0 += _WORD
+                if c0 < n_cand:
+                    for j in range(n_cand - c0 + 2):
+                        d[j] = d[j + _WORD]
+                        s[j] = s[j + _WORD]
+            acc = zero
+            xa = px + nx * c_lo
+            xb = px + nx * c_hi
+            ya = py + ny * c_lo
+            yb = py + ny * c_hi
+            if min(xa, xb) >= zero and max(xa, xb) < x_max and min(ya, yb) >= zero and max(ya, yb) < y_max:
+                for j in range(n_colour):
+                    u = colour_u[j]
+                    x = nx * u + px
+                    y = ny * u + py
+                    ix = np.int32(x)
+                    iy = np.int32(y)
+                    a = x - np.float32(ix)
+                    b = y - np.float32(iy)
+                    r0 = uintp(iy * np.int32(w_img) + ix)
+                    top = cflat[r0] * (one - a) + cflat[r0 + uintp(1)] * a
+                    bottom = cflat[r0 + wu] * (one - a) + cflat[r0 + wu + uintp(1)] * a
+                    acc += (top * (one - b) + bottom * b) * colour_w[j]
+            else:
+                for j in range(n_colour):
+                    u = colour_u[j]
+                    acc += _bilinear_zero(cflat, w_img, h_img, nx * u + px, ny * u + py) * colour_w[j]
+            if per_normal:
+                log_d[k] = base[i] + n_in * log_ratio_in[i] + math.log(miss + total)
+                colour[k] = acc
+            else:
+                linear += base[i] + n_in * log_ratio_in[i]
+                product *= miss + total
+                if product > 1e150:  # each factor is at least q > 0: only overflow can come
+                    linear += math.log(product)
+                    product = 1.0
+                col += acc
+        if not per_normal:
+            out[c] = linear + math.log(product) + colour_weight * col
+
+
 @njit(cache=True, nogil=True)
 def discriminant_normals(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale, inv_in, inv_out,
                          base, log_ratio_in, miss, colour_u, colour_w, log_d, colour):  # pragma: no cover - compiled
@@ -95,129 +259,26 @@ def discriminant_normals(fimg, cmap, pts, nrm, polarity, half, limit, threshold,
     base, log_ratio_in : float64 (M,)
         ``h (lambda - lambda_in)`` and ``log(lambda_in / lambda)`` per normal of the curve.
     miss : float64
-        The miss probability q.
+        The miss probability q, > 0.
     colour_u, colour_w : float32 (C,)
         Offsets of the colour samples along the normal (ascending) and their weights:
         ``c_i`` is the weighted sum of the colour map there.
     """
-    h_img, w_img = fimg.shape
-    flat = fimg.reshape(-1)
-    cflat = cmap.reshape(-1)
-    k_total = pts.shape[0]
-    m = polarity.shape[0]
-    n_prof = 2 * half + 4
-    n_diff = n_prof - 1
-    n_cand = 2 * half + 1
-    n_colour = colour_u.shape[0]
-    u0 = np.float32(half + 1.5)
-    c_lo = colour_u[0] if n_colour else np.float32(0.0)
-    c_hi = colour_u[n_colour - 1] if n_colour else np.float32(0.0)
-    idx = np.empty(n_prof, np.uint32)
-    ax = np.empty(n_prof, np.float32)
-    ay = np.empty(n_prof, np.float32)
-    prof = np.empty(n_prof, np.float32)
-    d = np.empty(n_diff, np.float32)
-    s = np.empty(n_diff, np.float32)
-    peaks = np.empty(n_cand, np.int64)
-    two = np.float32(2.0)
-    zero = np.float32(0.0)
-    one = np.float32(1.0)
-    wu = uintp(w_img)
-    x_max = np.float32(w_img - 1)
-    y_max = np.float32(h_img - 1)
-    i = 0  # normal k is normal k % M of its curve
-    for k in range(k_total):
-        px = pts[k, 0]
-        py = pts[k, 1]
-        nx = nrm[k, 0]
-        ny = nrm[k, 1]
-        # the profile at u = -u0, ..., u0 (step 1); when the segment's ends, and so all its
-        # samples and their right and lower neighbours, are inside the image, without border
-        # tests: coordinates first, then the pixels (float products and sums are monotone)
-        xa = px - nx * u0
-        xb = px + nx * u0
-        ya = py - ny * u0
-        yb = py + ny * u0
-        if min(xa, xb) >= zero and max(xa, xb) < x_max and min(ya, yb) >= zero and max(ya, yb) < y_max:
-            for j in range(n_prof):
-                u = np.float32(j) - u0
-                x = nx * u + px
-                y = ny * u + py
-                ix = np.int32(x)
-                iy = np.int32(y)
-                ax[j] = x - np.float32(ix)
-                ay[j] = y - np.float32(iy)
-                idx[j] = iy * np.int32(w_img) + ix
-            for j in range(n_prof):
-                r0 = uintp(idx[j])
-                a = ax[j]
-                b = ay[j]
-                top = flat[r0] * (one - a) + flat[r0 + uintp(1)] * a
-                bottom = flat[r0 + wu] * (one - a) + flat[r0 + wu + uintp(1)] * a
-                prof[j] = top * (one - b) + bottom * b
-        else:
-            for j in range(n_prof):
-                u = np.float32(j) - u0
-                prof[j] = _bilinear_replicate(flat, w_img, h_img, nx * u + px, ny * u + py)
-        for j in range(n_diff):  # D at u = -(half + 1) .. half + 1
-            d[j] = prof[j + 1] - prof[j]
-        for j in range(n_diff):
-            s[j] = abs(d[j])
-        # local maxima of |D| above the threshold, of the normal's polarity (sgn = 0: either);
-        # collected without branches (a maximum is rare and unpredictable), then scored
-        sgn = np.float32(polarity[i])
-        c = 0
-        for j in range(n_cand):
-            a1 = s[j + 1]
-            peaks[c] = j
-            c += (a1 >= threshold) & (a1 > s[j]) & (a1 >= s[j + 2]) & ((sgn == zero) | (sgn * d[j + 1] > zero))
-        total = 0.0
-        n_in = 0
-        for t in range(c):
-            j = peaks[t]
-            a0 = s[j]
-            a1 = s[j + 1]
-            a2 = s[j + 2]
-            # parabola through the three values; a1 > a0 and a1 >= a2, so the curvature is < 0
-            off = np.float32(0.5) * (a0 - a2) / (a0 - two * a1 + a2)
-            nu = np.float32(j - half) + off
-            x = px + nu * nx
-            y = py + nu * ny
-            # only features within the search segment and inside the image count
-            if abs(nu) <= limit and x >= zero and x <= x_max and y >= zero and y <= y_max:
-                g = math.exp(nu * nu * scale)
-                if nu < zero:
-                    total += g * inv_in[i]
-                    n_in += 1
-                else:
-                    total += g * inv_out[i]
-        log_d[k] = base[i] + n_in * log_ratio_in[i] + math.log(miss + total)
-        acc = zero
-        xa = px + nx * c_lo
-        xb = px + nx * c_hi
-        ya = py + ny * c_lo
-        yb = py + ny * c_hi
-        if min(xa, xb) >= zero and max(xa, xb) < x_max and min(ya, yb) >= zero and max(ya, yb) < y_max:
-            for j in range(n_colour):
-                u = colour_u[j]
-                x = nx * u + px
-                y = ny * u + py
-                ix = np.int32(x)
-                iy = np.int32(y)
-                a = x - np.float32(ix)
-                b = y - np.float32(iy)
-                r0 = uintp(iy * np.int32(w_img) + ix)
-                top = cflat[r0] * (one - a) + cflat[r0 + uintp(1)] * a
-                bottom = cflat[r0 + wu] * (one - a) + cflat[r0 + wu + uintp(1)] * a
-                acc += (top * (one - b) + bottom * b) * colour_w[j]
-        else:
-            for j in range(n_colour):
-                u = colour_u[j]
-                acc += _bilinear_zero(cflat, w_img, h_img, nx * u + px, ny * u + py) * colour_w[j]
-        colour[k] = acc
-        i += 1
-        if i == m:
-            i = 0
+    _discriminant(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale, inv_in, inv_out, base,
+                  log_ratio_in, miss, colour_u, colour_w, 0.0, log_d, colour, np.empty(0))
+
+
+@njit(cache=True, nogil=True)
+def discriminant_curves(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale, inv_in, inv_out,
+                        base, log_ratio_in, miss, colour_u, colour_w, colour_weight, out):  # pragma: no cover - compiled
+    """``Σ_i log D_i + w_c c_i`` of each curve of M normals, written into ``out`` (K / M,).
+
+    The arguments are those of :func:`discriminant_normals`, with the colour term's weight
+    ``colour_weight``.  A curve's logarithms are taken of the product of its normals'
+    ``q + Σ_n ...`` (rescaled before it overflows): one ``log`` per curve, not per normal.
+    """
+    _discriminant(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale, inv_in, inv_out, base,
+                  log_ratio_in, miss, colour_u, colour_w, colour_weight, np.empty(0), np.empty(0, np.float32), out)
 
 
 @njit(cache=True, nogil=True)
