@@ -152,6 +152,24 @@ def test_basis_derivative_order_validated():
         SplineBasis(5).basis_derivative([0.0], 3)
 
 
+@pytest.mark.parametrize("closed", [True, False])
+@pytest.mark.parametrize("degree", [1, 2, 3, 4])
+def test_basis_and_derivatives_agree_with_scipy_bspline(degree, closed):
+    """The Cox–de Boor basis is scipy's B-spline of the same knots, at every order of
+    derivative, on random parameters, at every knot and at the open curve's right end."""
+    from scipy.interpolate import BSpline
+
+    rng = np.random.default_rng(degree)
+    for n in (degree + 1, degree + 3, 12):
+        basis = SplineBasis(n, degree=degree, closed=closed)
+        knots, fold = basis._knots
+        spline = BSpline(knots, fold, degree, extrapolate=True)
+        s = np.concatenate([rng.uniform(0, basis.L, 100), np.arange(basis.L + 1.0)])
+        for nu in range(degree + 1):
+            want = (spline if nu == 0 else spline.derivative(nu))(basis._wrap(s))
+            np.testing.assert_allclose(basis.basis_derivative(s, nu), want, rtol=0, atol=1e-12)
+
+
 # ---------------------------------------------------------------------- metric
 @pytest.mark.parametrize("n", [3, 5, 8, 12])
 def test_closed_quadratic_metric_pinned(n):

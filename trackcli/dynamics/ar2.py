@@ -38,7 +38,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import scipy.linalg
 
 from trackcli.errors import ConfigError, DataError, ModelError
 
@@ -545,6 +544,8 @@ def stationary_covariance(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 
     The caller checks that ``A`` is stable; the result is symmetrised.
     """
+    import scipy.linalg  # imported here, not at start-up: it takes a tenth of a second
+
     P = scipy.linalg.solve_discrete_lyapunov(A, B @ B.T)
     return 0.5 * (P + P.T)
 

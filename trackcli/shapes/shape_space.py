@@ -46,7 +46,6 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from scipy.linalg import cholesky, solve_triangular
 
 from trackcli.errors import ConfigError, DataError, ModelError, TrackcliError
 from trackcli.shapes.spline import CurveSampler, SplineBasis, curve_centre
@@ -162,9 +161,7 @@ class ShapeSpace:
     @cached_property
     def pinv(self) -> np.ndarray:
         """L2 pseudo-inverse ``W⁺ = H⁻¹ Wᵀ 𝒰``, shape (Nx, 2 Nq)."""
-        c = cholesky(self.H, lower=True)
-        WtU = self.W.T @ self.basis.U
-        return _readonly(solve_triangular(c.T, solve_triangular(c, WtU, lower=True), lower=False))
+        return _readonly(np.linalg.solve(self.H, self.W.T @ self.basis.U))
 
     def _check_X(self, X) -> np.ndarray:
         X = np.asarray(X, dtype=float)
@@ -560,7 +557,9 @@ def _metric_eig(P: np.ndarray, G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     eigenvalues in descending order (clipped at 0) and the matching ``v`` as columns,
     signed so that the largest component of each ``u`` is positive.
     """
-    C = cholesky(G, lower=True)
+    from scipy.linalg import solve_triangular  # imported here, not at start-up: it takes a tenth of a second
+
+    C = np.linalg.cholesky(G)
     lam, u = np.linalg.eigh(C.T @ P @ C)
     lam, u = lam[::-1], u[:, ::-1]
     big = np.argmax(np.abs(u), axis=0)

@@ -36,7 +36,6 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
-from scipy.interpolate import BSpline
 
 from trackcli.errors import ConfigError, DataError
 
@@ -50,6 +49,11 @@ __all__ = [
     "signed_area",
     "dense_polygon",
 ]
+
+
+def _reciprocal(width: np.ndarray) -> np.ndarray:
+    """``1 / width``, 0 where the width is 0 (repeated knots)."""
+    return np.divide(1.0, width, out=np.zeros_like(width), where=width > 0)
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:
@@ -147,20 +151,43 @@ class SplineBasis:
 
     # ---------------------------------------------------------------- basis functions
     @cached_property
-    def _splines(self) -> tuple[BSpline, ...]:
-        """Vector-valued splines whose components are the basis functions (and derivatives)."""
+    def _knots(self) -> tuple[np.ndarray, np.ndarray]:
+        """The knot vector and the map from its B-splines to the control points (columns)."""
         d, N = self.degree, self.n_ctrl
-        if self.closed:
+        if self.closed:  # N + d B-splines on uniform knots, the last d wrapping onto the first
             knots = np.arange(-d, N + d + 1, dtype=float)
-            coef = np.zeros((N + d, N))
-            coef[np.arange(N + d), np.arange(N + d) % N] = 1.0
-        else:
+            fold = np.zeros((N + d, N))
+            fold[np.arange(N + d), np.arange(N + d) % N] = 1.0
+        else:  # clamped: end knots repeated d + 1 times
             L = self.L
-            inner = np.arange(L + 1, dtype=float)
-            knots = np.concatenate([np.zeros(d), inner, np.full(d, float(L))])
-            coef = np.eye(N)
-        spl = BSpline(knots, coef, d, extrapolate=True)
-        return tuple([spl] + [spl.derivative(nu) for nu in range(1, d + 1)])
+            knots = np.concatenate([np.zeros(d), np.arange(L + 1, dtype=float), np.full(d, float(L))])
+            fold = np.eye(N)
+        return knots, fold
+
+    def _bsplines(self, x: np.ndarray, nu: int) -> np.ndarray:
+        """``dᵛ/dxᵛ`` of every B-spline of the knot vector at ``x`` (K,): shape (K, n).
+
+        Cox–de Boor: the degree-0 B-spline of ``x``'s span is 1 (the span of ``x``; the
+        last non-empty one at the right end), and ``B_{i,k} = ω_{i,k} B_{i,k-1} +
+        (1 - ω_{i+1,k}) B_{i+1,k-1}`` with ``ω_{i,k} = (x - t_i) / (t_{i+k} - t_i)``; the
+        derivative ``B'_{i,k} = k (B_{i,k-1} / (t_{i+k} - t_i) - B_{i+1,k-1} / (t_{i+k+1} -
+        t_{i+1}))`` is applied for the last ``nu`` degrees (0/0 = 0 throughout).
+        """
+        t = self._knots[0]
+        d = self.degree
+        n_all = t.size - 1  # degree-0 B-splines, one per knot interval
+        span = np.clip(np.searchsorted(t, x, side="right") - 1, d, n_all - d - 1)
+        b = np.zeros((x.size, n_all))
+        b[np.arange(x.size), span] = 1.0
+        for k in range(1, d + 1):
+            n_k = n_all - k
+            inv = _reciprocal(t[k : k + n_k] - t[:n_k])  # 1 / (t_{i+k} - t_i)
+            inv1 = _reciprocal(t[k + 1 : k + 1 + n_k] - t[1 : 1 + n_k])  # 1 / (t_{i+k+1} - t_{i+1})
+            if k > d - nu:  # the last nu degrees: derivatives
+                b = k * (b[:, :n_k] * inv - b[:, 1 : n_k + 1] * inv1)
+            else:
+                b = (x[:, None] - t[:n_k]) * inv * b[:, :n_k] + (t[k + 1 : k + 1 + n_k] - x[:, None]) * inv1 * b[:, 1:]
+        return b
 
     def basis(self, s) -> np.ndarray:
         """Basis values ``B(s)ᵀ``.
@@ -189,7 +216,7 @@ class SplineBasis:
                 f"derivative order must be an integer in [0, {self.degree}], got {nu!r}"
             )
         s = self._wrap(s)
-        out = self._splines[nu](s.ravel())
+        out = self._bsplines(s.ravel(), nu) @ self._knots[1]
         return out.reshape(s.shape + (self.n_ctrl,))
 
     # ------------------------------------------------------------- exact integrals
