@@ -240,6 +240,31 @@ def test_sampler_batched_equals_one_by_one():
     np.testing.assert_allclose(P[1, 2, :, 1], B @ Q[1, 2, 7:])
 
 
+@pytest.mark.parametrize("closed", [True, False])
+@pytest.mark.parametrize("degree", [1, 2, 3])
+def test_compiled_points_normals_are_the_numpy_ones(degree, closed):
+    """The compiled evaluation the tracker uses is :meth:`points` and :meth:`normals`: curves
+    running either way round (the outward sign), a single curve, and a curve whose control
+    points coincide (zero tangent, zero normal)."""
+    rng = np.random.default_rng(degree)
+    basis = SplineBasis(9, degree=degree, closed=closed)
+    sampler = basis.sampler(basis.measurement_params(20))
+    Q = rng.normal(size=(3, 40, 18)) * 40 + 200
+    Q[0, 1] = 0.0  # all control points at the origin
+    ang = np.linspace(0, 2 * np.pi, 9, endpoint=False)
+    Q[1, 0] = np.concatenate([50 * np.cos(ang), 30 * np.sin(ang)])  # an ellipse one way ...
+    Q[1, 1] = np.concatenate([50 * np.cos(-ang), 30 * np.sin(-ang)])  # ... and the other
+    P, N = sampler.points_normals(Q)
+    np.testing.assert_allclose(P, sampler.points(Q), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(N, sampler.normals(Q), rtol=0, atol=1e-12)
+    assert (N[0, 1] == 0).all()
+    if closed:  # both ellipses' normals point outward
+        assert (np.sum(N[1, :2] * P[1, :2], axis=-1) > 0).all()
+    p1, n1 = sampler.points_normals(Q[2, 3])
+    assert p1.shape == n1.shape == (20, 2)
+    np.testing.assert_allclose(n1, N[2, 3], rtol=0, atol=1e-15)
+
+
 def test_sampler_rejects_wrong_control_length():
     sampler = SplineBasis(6).sampler([0.0, 1.0])
     with pytest.raises(DataError, match="2\\*Nq = 12"):

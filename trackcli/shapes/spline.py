@@ -35,7 +35,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from functools import cached_property
 
+import math
+
 import numpy as np
+from numba import njit
 
 from trackcli.errors import ConfigError, DataError
 
@@ -337,6 +340,14 @@ class CurveSampler:
         """Number of sample points."""
         return self.s.size
 
+    @cached_property
+    def _Bt(self) -> np.ndarray:
+        return np.ascontiguousarray(self.B.T)
+
+    @cached_property
+    def _dBt(self) -> np.ndarray:
+        return np.ascontiguousarray(self.dB.T)
+
     def points(self, Q) -> np.ndarray:
         """Curve points ``r(s_i)``: ``Q`` (..., 2 Nq) → (..., M, 2)."""
         Qx, Qy = _split(Q, self.basis.n_ctrl)
@@ -365,8 +376,64 @@ class CurveSampler:
         return np.stack((ty * inv, -tx * inv), axis=-1)
 
     def points_normals(self, Q) -> tuple[np.ndarray, np.ndarray]:
-        """``(points(Q), normals(Q))``, each of shape (..., M, 2)."""
-        return self.points(Q), self.normals(Q)
+        """``(points(Q), normals(Q))``, each of shape (..., M, 2).
+
+        Computed by a compiled loop that releases the GIL (:func:`_points_normals`): the
+        particle filter calls it for every block of samples in its scoring threads, where
+        the dozen numpy passes of :meth:`points` and :meth:`normals` would hold the GIL.
+        """
+        Qx, _ = _split(Q, self.basis.n_ctrl)
+        lead = Qx.shape[:-1]
+        flat = np.ascontiguousarray(np.asarray(Q, dtype=float).reshape(-1, 2 * self.basis.n_ctrl))
+        pts = np.empty((flat.shape[0], self.M, 2))
+        nrm = np.empty((flat.shape[0], self.M, 2))
+        area = self.basis.area_matrix if self.basis.closed else np.zeros((0, 0))
+        _points_normals(flat, self._Bt, self._dBt, area, pts, nrm)
+        return pts.reshape(lead + (self.M, 2)), nrm.reshape(lead + (self.M, 2))
+
+
+@njit(cache=True, nogil=True)
+def _points_normals(Q, Bt, dBt, area, pts, nrm):  # pragma: no cover - compiled
+    """:meth:`CurveSampler.points` and :meth:`CurveSampler.normals` of K curves, into ``pts``
+    and ``nrm`` (K, M, 2); ``Bt`` and ``dBt`` are the basis matrices transposed, (Nq, M);
+    ``area`` is the closed basis's area matrix, (0, 0) when open."""
+    n, m_pts = Bt.shape
+    px = np.empty(m_pts)
+    py = np.empty(m_pts)
+    tx = np.empty(m_pts)
+    ty = np.empty(m_pts)
+    row = np.empty(n)
+    for k in range(Q.shape[0]):
+        sign = 1.0
+        if area.shape[0]:  # closed: outward normals, whichever way the curve runs
+            row[:] = 0.0
+            for j in range(n):  # Qxᵀ K, a row at a time
+                qx = Q[k, j]
+                for i in range(n):
+                    row[i] += qx * area[j, i]
+            a = 0.0
+            for i in range(n):
+                a += row[i] * Q[k, n + i]
+            sign = 1.0 if 0.5 * a >= 0.0 else -1.0
+        px[:] = 0.0
+        py[:] = 0.0
+        tx[:] = 0.0
+        ty[:] = 0.0
+        for j in range(n):  # one control point at a time: independent sums over the points
+            qx = Q[k, j]
+            qy = Q[k, n + j]
+            for m in range(m_pts):
+                px[m] += qx * Bt[j, m]
+                py[m] += qy * Bt[j, m]
+                tx[m] += qx * dBt[j, m]
+                ty[m] += qy * dBt[j, m]
+        for m in range(m_pts):
+            norm = math.sqrt(tx[m] * tx[m] + ty[m] * ty[m])  # no overflow at image coordinates
+            inv = (1.0 / norm if norm > 0.0 else 0.0) * sign
+            pts[k, m, 0] = px[m]
+            pts[k, m, 1] = py[m]
+            nrm[k, m, 0] = ty[m] * inv
+            nrm[k, m, 1] = -tx[m] * inv
 
 
 def dense_polygon(Q, basis: SplineBasis, n: int | None = None) -> np.ndarray:

@@ -315,8 +315,9 @@ def weigh(samples: np.ndarray, loglik: Callable[[np.ndarray], np.ndarray],
     ``loglik`` is called on blocks of at most :data:`LOGLIK_BLOCK` samples (bounded
     memory); ``base`` holds the log-weights the samples carry into the step (zeros after
     selection, plus any importance correction).  With ``threads`` > 1 the blocks are cut
-    ``threads`` ways and scored in a thread pool (``loglik`` must be a pure function of its
-    samples; OpenCV and numpy release the GIL in the heavy parts); the result is the same
+    ``threads`` ways, one share scored by the calling thread and the others by a pool of
+    ``threads - 1`` (``loglik`` must be a pure function of its samples; the compiled
+    kernels, OpenCV and numpy release the GIL in the heavy parts); the result is the same
     array to the bit.  ``threads = 0`` means :func:`automatic_threads` for at least
     ``parallel_min`` samples and one thread below that.  Returns ``(log-likelihoods (n,), normalised log-weights (n,),
     degenerate)``; ``degenerate`` is True when every weight was zero and the weights were
@@ -326,7 +327,11 @@ def weigh(samples: np.ndarray, loglik: Callable[[np.ndarray], np.ndarray],
     ll = np.empty(n)
     if threads == 0:
         threads = automatic_threads() if n >= parallel_min else 1
-    size = LOGLIK_BLOCK if threads <= 1 else max(1, min(LOGLIK_BLOCK, -(-n // threads)))
+    if threads <= 1:
+        size = LOGLIK_BLOCK
+    else:  # a whole number of blocks per thread, so that the shares are equal
+        per_thread = -(-n // (threads * LOGLIK_BLOCK))
+        size = max(1, -(-n // (threads * per_thread)))
     starts = range(0, n, size)
 
     def score(b0: int) -> None:
@@ -337,8 +342,16 @@ def weigh(samples: np.ndarray, loglik: Callable[[np.ndarray], np.ndarray],
         ll[b0 : b0 + block.shape[0]] = part
 
     if threads > 1 and len(starts) > 1:
-        for done in thread_pool(threads).map(score, starts):
-            pass
+        # the blocks dealt out round-robin; the calling thread scores the first share itself
+        # instead of waiting idle for the pool
+        def share(first: int) -> None:
+            for b0 in starts[first::threads]:
+                score(b0)
+
+        others = [thread_pool(threads - 1).submit(share, t) for t in range(1, min(threads, len(starts)))]
+        share(0)
+        for future in others:
+            future.result()
     else:
         for b0 in starts:
             score(b0)
