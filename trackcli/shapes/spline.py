@@ -264,6 +264,21 @@ class SplineBasis:
         G = (self.basis(s).T * w) @ self.basis_derivative(s, 1)
         return _readonly(G - G.T)
 
+    def _dense_sampler(self, n: int) -> CurveSampler:
+        """The sampler of :func:`dense_polygon` with ``n`` points, made once per ``n`` (it is
+        drawn for every frame's outline)."""
+        made = self.__dict__.setdefault("_dense_samplers", {})
+        if n not in made:
+            s = np.arange(n) * (self.L / n) if self.closed else np.linspace(0.0, self.L, n)
+            made[n] = CurveSampler(self, s)
+        return made[n]
+
+    @cached_property
+    def _quadrature_basis(self) -> tuple[np.ndarray, np.ndarray]:
+        """The basis and its derivative at the nodes of :attr:`_quadrature`."""
+        s, _ = self._quadrature
+        return _readonly(self.basis(s)), _readonly(self.basis_derivative(s, 1))
+
     def sampler(self, s) -> CurveSampler:
         """A :class:`CurveSampler` at parameters ``s`` (shape (M,))."""
         return CurveSampler(self, s)
@@ -456,11 +471,7 @@ def dense_polygon(Q, basis: SplineBasis, n: int | None = None) -> np.ndarray:
         n = max(64, 16 * basis.L)
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
         raise ConfigError(f"dense polygon needs an integer n >= 2, got {n!r}")
-    if basis.closed:
-        s = np.arange(n) * (basis.L / n)
-    else:
-        s = np.linspace(0.0, basis.L, n)
-    return CurveSampler(basis, s).points(Q)
+    return basis._dense_sampler(int(n)).points(Q)
 
 
 def polygon_area_centroid(points) -> tuple[np.ndarray, np.ndarray]:
@@ -518,8 +529,7 @@ def curve_area_centroid(Q, basis: SplineBasis) -> tuple[np.ndarray, np.ndarray]:
     """
     Qx, Qy = _split(Q, basis.n_ctrl)
     s, w = basis._quadrature
-    B = basis.basis(s)
-    dB = basis.basis_derivative(s, 1)
+    B, dB = basis._quadrature_basis
     mx = Qx @ basis.mean_weights
     my = Qy @ basis.mean_weights
     x = Qx @ B.T - mx[..., None]
