@@ -335,3 +335,35 @@ def test_a_jump_of_the_motion_prior_is_an_impulse():
     jumps = (out - new)[moved, :2]
     assert np.std(jumps) == pytest.approx(3.0, rel=0.1)
     assert translation_jumps(0.0, 3.0) is None and translation_jumps(0.1, 0.0) is None
+
+
+@pytest.mark.parametrize("threads", [2, 3])
+def test_weigh_in_threads_gives_every_thread_an_equal_share_and_the_same_result(threads):
+    """Blocks are cut so that each thread (the caller among them) scores as many samples; the
+    weights are those of one thread to the bit; an error in any block reaches the caller."""
+    rng = np.random.default_rng(2)
+    x = rng.normal(size=(5 * cond.LOGLIK_BLOCK + 11, 3))
+    import threading
+
+    seen: dict[str, int] = {}
+
+    def loglik(block):
+        name = threading.current_thread().name
+        seen[name] = seen.get(name, 0) + len(block)
+        return -0.5 * np.sum(block**2, axis=1)
+
+    ll1, w1, _ = cond.weigh(x, loglik, threads=1)
+    seen.clear()
+    ll, w, _ = cond.weigh(x, loglik, threads=threads)
+    np.testing.assert_array_equal(ll, ll1)
+    np.testing.assert_array_equal(w, w1)
+    assert len(seen) == threads and threading.current_thread().name in seen
+    assert max(seen.values()) - min(seen.values()) <= 0.001 * x.shape[0]
+    for bad_start in (0, x.shape[0] - 1):  # the caller's share, the pool's last block
+        def failing(block, bad=x[bad_start]):
+            if np.any(np.all(block == bad, axis=1)):
+                raise DataError("scoring failed")
+            return np.zeros(len(block))
+
+        with pytest.raises(DataError, match="scoring failed"):
+            cond.weigh(x, failing, threads=threads)

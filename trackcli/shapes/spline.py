@@ -32,10 +32,9 @@ span and knot arithmetic; split, each part would re-derive it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import cached_property
-
-import math
 
 import numpy as np
 from numba import njit

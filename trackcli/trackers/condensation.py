@@ -348,8 +348,13 @@ def weigh(samples: np.ndarray, loglik: Callable[[np.ndarray], np.ndarray],
             for b0 in starts[first::threads]:
                 score(b0)
 
+        from concurrent.futures import wait
+
         others = [thread_pool(threads - 1).submit(share, t) for t in range(1, min(threads, len(starts)))]
-        share(0)
+        try:
+            share(0)
+        finally:  # no block is still being scored when this returns or raises
+            wait(others)
         for future in others:
             future.result()
     else:
