@@ -91,7 +91,12 @@ _WORD = 32  # candidate maxima tested per pass (one bit each of an integer)
 def _discriminant(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale, inv_in, inv_out, base,
                   log_ratio_in, miss, colour_u, colour_w, colour_weight, log_d, colour, out):  # pragma: no cover
     """The kernels below: per normal into ``log_d`` and ``colour`` (when they have K entries),
-    summed per curve into ``out`` (when it has K / M)."""
+    summed per curve into ``out`` (when it has K / M).
+
+    One compiled function with two Python entry points, not three compiled ones: compiled
+    functions that call each other can get mismatched cache entries when two processes
+    compile them at once (Numba issues 4807 and 10128), and a ``batch`` worker then crashed
+    on a fresh installation."""
     h_img, w_img = fimg.shape
     flat = fimg.reshape(-1)
     cflat = cmap.reshape(-1)
@@ -237,9 +242,8 @@ def _discriminant(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale,
             out[c] = linear + math.log(product) + colour_weight * col
 
 
-@njit(cache=True, nogil=True)
 def discriminant_normals(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale, inv_in, inv_out,
-                         base, log_ratio_in, miss, colour_u, colour_w, log_d, colour):  # pragma: no cover - compiled
+                         base, log_ratio_in, miss, colour_u, colour_w, log_d, colour) -> None:
     """``log D_i`` and the colour term ``c_i`` of K normals, written into ``log_d`` and ``colour`` (K,).
 
     Parameters (arrays C-contiguous)
@@ -268,9 +272,8 @@ def discriminant_normals(fimg, cmap, pts, nrm, polarity, half, limit, threshold,
                   log_ratio_in, miss, colour_u, colour_w, 0.0, log_d, colour, np.empty(0))
 
 
-@njit(cache=True, nogil=True)
 def discriminant_curves(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale, inv_in, inv_out,
-                        base, log_ratio_in, miss, colour_u, colour_w, colour_weight, out):  # pragma: no cover - compiled
+                        base, log_ratio_in, miss, colour_u, colour_w, colour_weight, out) -> None:
     """``Σ_i log D_i + w_c c_i`` of each curve of M normals, written into ``out`` (K / M,).
 
     The arguments are those of :func:`discriminant_normals`, with the colour term's weight
