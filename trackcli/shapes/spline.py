@@ -396,9 +396,10 @@ class CurveSampler:
         particle filter calls it for every block of samples in its scoring threads, where
         the dozen numpy passes of :meth:`points` and :meth:`normals` would hold the GIL.
         """
-        Qx, _ = _split(Q, self.basis.n_ctrl)
-        lead = Qx.shape[:-1]
-        flat = np.ascontiguousarray(np.asarray(Q, dtype=float).reshape(-1, 2 * self.basis.n_ctrl))
+        Q = np.asarray(Q, dtype=float)
+        _split(Q, self.basis.n_ctrl)  # checks the last dimension
+        lead = Q.shape[:-1]
+        flat = np.ascontiguousarray(Q.reshape(-1, 2 * self.basis.n_ctrl))
         pts = np.empty((flat.shape[0], self.M, 2))
         nrm = np.empty((flat.shape[0], self.M, 2))
         area = self.basis.area_matrix if self.basis.closed else np.zeros((0, 0))
