@@ -151,6 +151,32 @@ def test_condensation_layout_adds_ess_loglik_and_histograms(tmp_path, ellipse_cl
     assert _queries(views["log-likelihood"]) == ["/series/loglik"]
 
 
+def test_series_sent_in_chunks_hold_every_frame_once(tmp_path, ellipse_clip, monkeypatch):
+    """A run's plots are sent every SERIES_CHUNK frames (memory stays flat in the clip's length):
+    the recording holds each frame's values once, as in the CSV, and the whole histogram image."""
+    import csv
+
+    from trackcli.io.config import Settings
+    from trackcli.run import clips
+
+    monkeypatch.setattr(clips, "SERIES_CHUNK", 4)
+    tmpl = tmp_path / "e.yaml"
+    run(["draw", ellipse_clip, "--ellipse", "70,60,28,36", "-o", tmpl], 0)
+    run(["track", ellipse_clip, "--template", tmpl, "--particles", "50", "-o", tmp_path], 0)
+    path = tmp_path / "ellipse.condensation.rrd"
+    with open(tmp_path / "ellipse.condensation.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) > 4  # at least one chunk sent before the end
+    assert ru.read_index(path, "series/translation", "Scalars:scalars") == [int(r["frame"]) for r in rows]
+    tx_ty = np.array(ru.read_column(path, "series/translation", "Scalars:scalars"))
+    np.testing.assert_allclose(tx_ty, [[float(r["X_tx"]), float(r["X_ty"])] for r in rows], rtol=1e-6, atol=1e-6)
+    ess = np.ravel(ru.read_column(path, "series/ess", "Scalars:scalars"))
+    np.testing.assert_allclose(ess, [float(r["ess"]) for r in rows], rtol=1e-5)
+    assert ru.read_column(path, "series/translation", "SeriesLines:names") == [["tx", "ty"]]
+    fmt = ru.read_column(path, "histogram/tx_over_time", "Image:format")[0][0]
+    assert (fmt["width"], fmt["height"]) == (Settings().condensation.histogram_bins, len(rows))
+
+
 def test_series_without_a_unit_get_their_own_view_and_units_do_not_change(tmp_path):
     out = tmp_path / "r.rrd"
     with Recording(out, blueprint="track") as rec:

@@ -122,8 +122,17 @@ class BackgroundRecorder:
 
     def submit(self, image: Any, r: Any) -> None:
         self._pending.append(self._pool.submit(self._record, image, r))
+        self._drain()
+
+    def _drain(self) -> None:
+        """Collect the finished work (raising its error), and wait while more than ``depth`` wait."""
         while self._pending and (self._pending[0].done() or len(self._pending) > self._depth):
             self._pending.popleft().result()
+
+    def call(self, fn: Callable[..., None], *args: Any) -> None:
+        """Run ``fn(*args)`` in the recorder's thread, after the frames submitted so far."""
+        self._pending.append(self._pool.submit(fn, *args))
+        self._drain()
 
     def finish(self) -> None:
         """Wait for every frame (and send the frames still held in a batch); raise the first error."""

@@ -160,14 +160,14 @@ def run_clip(
     n = lost = 0
     found_sum = 0.0
     ess_sum, ess_count = 0.0, 0
-    # what the recording's plots need at the end, kept compact (8 bytes a value; each frame's
-    # histogram as the grey levels of its row of the heat-map): memory stays nearly flat in
-    # the clip's length
-    series: dict[str, array.array] = {k: array.array("d") for k in ("frame", "time", "tx", "ty", "cx", "cy", "found",
-                                                                     "gate", "ess", "loglik")}
+    # the recording's plots: the series are sent every SERIES_CHUNK frames and forgotten; what
+    # only the end can draw is kept compact (each frame's histogram as the 8-bit grey levels
+    # of its row of the heat-map, one byte a bin; the tracker's own values, 8 bytes each)
+    series: dict[str, array.array] = {k: array.array("d") for k in SERIES_KEYS}
     extra_names = list(extra_columns or [])
     extras = array.array("d")
-    hist_rows: list[np.ndarray] = []
+    extras_at = array.array("d")  # frame and time of each row of extras
+    hist_rows = bytearray()
     hist_edges = None
     rec_ctx = None
     rec = None
@@ -223,10 +223,14 @@ def run_clip(
                                      ("cx", r.centroid[0]), ("cy", r.centroid[1]), ("found", r.n_found),
                                      ("gate", r.gate_rms), ("ess", r.ess), ("loglik", r.loglik)):
                         series[key].append(float(val))
+                    if len(series["frame"]) >= SERIES_CHUNK:  # sent in the recorder's thread, in order
+                        full, series = series, {k: array.array("d") for k in SERIES_KEYS}
+                        recorder.call(_record_series, rec, full)
                     if extra_names:
                         extras.extend(float(r.extra.get(e, np.nan)) for e in extra_names)
+                        extras_at.extend((float(r.index), float(r.time)))
                     if "histogram" in r.display:
-                        hist_rows.append(histogram_grey(np.asarray(r.display["histogram"])[None])[0])
+                        hist_rows += histogram_grey(np.asarray(r.display["histogram"])[None])[0].tobytes()
                         hist_edges = r.display["hist_edges"]
                 if recorder is not None:
                     recorder.submit(frames.current, r)
@@ -240,10 +244,14 @@ def run_clip(
                 write_smoothed(smoother.finish())
             wall = time.perf_counter() - t_start
             if rec is not None:
-                _record_series(rec, series, hist_rows, hist_edges)
+                _record_series(rec, series)
+                if hist_rows and hist_edges is not None:
+                    rec.log_histogram_image("histogram/tx_over_time",
+                                            np.frombuffer(hist_rows, np.uint8).reshape(-1, len(hist_edges) - 1),
+                                            hist_edges)
                 if extras:
-                    f = np.asarray(series["frame"], dtype=np.int64)
-                    t = np.asarray(series["time"], dtype=float)
+                    at = np.asarray(extras_at, dtype=float).reshape(-1, 2)
+                    f, t = at[:, 0].astype(np.int64), at[:, 1]
                     values = np.asarray(extras, dtype=float).reshape(-1, len(extra_names))
                     # a mixed-state run's label posteriors (p_<label>): one plot and a label strip
                     labels = [j for j, e in enumerate(extra_names) if e.startswith("p_")]
@@ -306,7 +314,14 @@ def _record_frame(rec: Any, log_frame: Any, frame: Any, r: Any) -> None:
             raise DataError(f"display overlay {path}: unknown kind {kind!r} (points, segments or contour)")
 
 
-def _record_series(rec: Any, s: dict[str, Any], hist_rows: list, hist_edges: Any) -> None:
+#: the per-frame values plotted in the recording (``series/…``)
+SERIES_KEYS = ("frame", "time", "tx", "ty", "cx", "cy", "found", "gate", "ess", "loglik")
+#: frames whose series values are sent to the recording together, then dropped from memory
+SERIES_CHUNK = 1000
+
+
+def _record_series(rec: Any, s: dict[str, array.array]) -> None:
+    """Send the series values held in ``s`` (:data:`SERIES_KEYS`) to the recording."""
     if not s["frame"]:
         return
     f = np.asarray(s["frame"], dtype=np.int64)
@@ -321,8 +336,6 @@ def _record_series(rec: Any, s: dict[str, Any], hist_rows: list, hist_edges: Any
         rec.send_series("series/ess", f, t, ess, names="ESS", unit="samples")
         rec.send_series("series/loglik", f, t, np.asarray(s["loglik"], dtype=float), names="loglik",
                         unit="log-likelihood")
-    if hist_rows and hist_edges is not None:
-        rec.log_histogram_image("histogram/tx_over_time", np.vstack(hist_rows), hist_edges)
 
 
 # ---------------------------------------------------------------------------------------------
