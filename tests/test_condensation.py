@@ -337,6 +337,37 @@ def test_a_jump_of_the_motion_prior_is_an_impulse():
     assert translation_jumps(0.0, 3.0) is None and translation_jumps(0.1, 0.0) is None
 
 
+def test_a_braking_jump_slows_stops_or_turns_back_the_predicted_velocity():
+    """A braking jump is -u v (v the predicted velocity, u uniform in [0, 2]) plus a small
+    isotropic part; it is an impulse too, and it comes on top of the isotropic jumps."""
+    from trackcli.trackers.condensation_tracker import BRAKE_SPREAD, translation_jumps
+
+    rng = np.random.default_rng(5)
+    n = 20000
+    prev = rng.normal(size=(n, 4))
+    v = np.zeros((n, 4))
+    v[:, :2] = 40.0 * rng.normal(size=(n, 2))  # fast: the braking dominates the isotropic part
+    new = prev + v
+    rms = 1.0
+    out_prev, out, corr = translation_jumps(0.0, rms, brake=0.5)(prev, new, np.random.default_rng(1))
+    np.testing.assert_array_equal(out_prev, prev)
+    np.testing.assert_array_equal(corr, 0.0)
+    np.testing.assert_array_equal(out[:, 2:], new[:, 2:])
+    moved = np.any(out != new, axis=1)
+    assert 0.48 < moved.mean() < 0.52
+    jump, vel = (out - new)[moved, :2], v[moved, :2]
+    u = -np.sum(jump * vel, axis=1) / np.sum(vel * vel, axis=1)  # the share of v taken off
+    assert u.min() > -0.1 and u.max() < 2.1
+    assert np.mean(u) == pytest.approx(1.0, abs=0.03) and np.std(u) == pytest.approx(2 / np.sqrt(12), abs=0.03)
+    # what is left across the velocity is the isotropic part, BRAKE_SPREAD * rms per axis
+    across = (jump[:, 0] * vel[:, 1] - jump[:, 1] * vel[:, 0]) / np.hypot(vel[:, 0], vel[:, 1])
+    assert np.std(across) == pytest.approx(BRAKE_SPREAD * rms, rel=0.05)
+    # both kinds together: shares add up, and a sample at rest only gets the small part
+    both = translation_jumps(0.1, rms, brake=0.05)(prev, new, np.random.default_rng(2))[1]
+    assert 0.14 < np.any(both != new, axis=1).mean() < 0.16
+    assert translation_jumps(0.0, 3.0, brake=0.0) is None and translation_jumps(0.0, 3.0, brake=0.1) is not None
+
+
 @pytest.mark.parametrize("threads", [2, 3])
 def test_weigh_in_threads_gives_every_thread_an_equal_share_and_the_same_result(threads):
     """Blocks are cut into equal shares, one per thread, and the caller scores one of them; the

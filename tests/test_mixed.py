@@ -19,6 +19,7 @@ from trackcli.dynamics.mixed import (Bounce, MixedDynamics, MixedPrediction, che
                                      load_mixed, mixed_from_dict, read_label_ranges, stationary_distribution,
                                      transitions_from_labels)
 from trackcli.errors import ModelError
+from trackcli.io.config import Settings
 from trackcli.run.bounces import detections, match, run_experiment, true_bounces
 from trackcli.trackers import condensation as cond
 
@@ -289,8 +290,13 @@ def ball_runs(tmp_path_factory):
     assert res.exit_code == 0, res.output
     model = yaml.safe_load((EXAMPLES / "bouncing_ball.mixed.yaml").read_text())
     assert model["labels"][1]["bounce"]["floor"] == 318  # the sample clip's floor
+    # the single model with the default braking jumps of the motion prior (and no isotropic ones)
+    braking = yaml.safe_load((EXAMPLES / "bouncing_ball.flight.yaml").read_text())
+    braking["condensation"]["jump_brake"] = Settings().condensation.jump_brake
+    (out / "braking.yaml").write_text(yaml.safe_dump(braking))
     runs = {}
     for name, args in (("single", ["-c", str(EXAMPLES / "bouncing_ball.flight.yaml")]),
+                       ("braking", ["-c", str(out / "braking.yaml")]),
                        ("mixed", ["-c", str(EXAMPLES / "bouncing_ball.settings.yaml"),
                                   "--model", str(EXAMPLES / "bouncing_ball.mixed.yaml")])):
         res = runner.invoke(cli, ["-q", "track", str(clip), "--template", str(out / "ball.yaml"), *args,
@@ -309,6 +315,16 @@ def test_mixed_state_tracks_through_every_bounce_where_one_model_does_not(ball_r
     # the mixed-state model follows every bounce to within a few pixels
     assert e.mixed.max_error < 5 and e.mixed.mean_error < 1.5
     assert (out / "bounces.png").stat().st_size > 1000
+
+
+def test_braking_jumps_let_one_model_follow_the_bounces(ball_runs):
+    """A few samples whose velocity is slowed, stopped or turned back (the default share,
+    condensation.jump_brake) carry the single flight model through each bounce, where without
+    them it overshoots through the floor."""
+    clip, runs, _ = ball_runs
+    assert Settings().condensation.jump_brake > 0
+    e = run_experiment(runs["braking"], runs["mixed"], clip.with_suffix(".truth.csv"))
+    assert e.single.max_error < 20 and e.single.mean_error < 5
 
 
 def test_the_bounce_posterior_peaks_at_every_bounce_and_nowhere_else(ball_runs):

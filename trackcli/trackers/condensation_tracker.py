@@ -26,6 +26,9 @@ from trackcli.trackers import condensation as cond
 from trackcli.trackers.base import FrameData, FrameResult, Tracker, run_tracker
 
 
+BRAKE_SPREAD = 0.3  # isotropic part of a braking jump, as a fraction of the jump size (translation_jumps)
+
+
 def initial_covariance(space: ShapeSpace, settings: CondensationSettings) -> np.ndarray:
     """Diagonal covariance of the hand-placed initial sample set (``init: template``).
 
@@ -38,27 +41,42 @@ def initial_covariance(space: ShapeSpace, settings: CondensationSettings) -> np.
     return np.diag(var)
 
 
-def translation_jumps(fraction: float, rms: float):
+def translation_jumps(fraction: float, rms: float, brake: float = 0.0):
     """The jump part of CONDENSATION's motion prior, as a ``propose`` hook of :func:`cond.step`.
 
     The prediction of the AR(2) model is smooth; objects in real footage also move
-    abruptly (a kick, a turn of the head, a jolt of the camera).  The motion prior is taken
-    as a mixture: with probability ``1 - fraction`` the AR(2) prediction, with probability
-    ``fraction`` the same plus an isotropic Gaussian jump of RMS ``rms`` px per axis in
-    translation.  A jump is an impulse: the previous shape stays where it was, so the jump
-    is also a change of velocity, which the AR(2) model then carries on (and damps) — an
-    object that is kicked, or turns, moves on in its new direction.  (Jumps that moved the
-    previous shape too, changing the position only, were measured on the dev table: real
-    clips P@20 0.67, against 0.76 for impulses over three seeds; `crossing` 0.42 against
-    0.89.)  Drawing from this prior needs no importance correction (zero log-weights).
+    abruptly (a kick, a turn of the head, a jolt of the camera, a ball bouncing).  The motion
+    prior is taken as a mixture of the AR(2) prediction and two kinds of jump in translation:
+
+    - with probability ``fraction``, an isotropic Gaussian jump of ``rms`` px per axis;
+    - with probability ``brake``, a braking jump ``-u v``, with ``v`` the sample's predicted
+      velocity (translation, px/frame) and ``u`` uniform in [0, 2] — slowing down (u < 1),
+      stopping (u = 1), turning back (u = 2: a ball bouncing off the floor, whose
+      prediction overshoots by twice its speed) — plus an isotropic Gaussian of
+      ``BRAKE_SPREAD * rms`` px per axis.  A jump of a fixed size cannot cover a fast object's
+      bounce; one proportional to its speed along its motion does.
+
+    A jump is an impulse: the previous shape stays where it was, so the jump is also a
+    change of velocity, which the AR(2) model then carries on (and damps) — an object that is
+    kicked, or turns, moves on in its new direction.  (Jumps that moved the previous shape
+    too, changing the position only, were measured on the dev table: real clips P@20 0.67,
+    against 0.76 for impulses over three seeds; `crossing` 0.42 against 0.89.)
+
+    Drawing from this prior needs no importance correction (zero log-weights).
     Returns None when there are no jumps.
     """
-    if fraction <= 0 or rms <= 0:
+    if rms <= 0 or fraction + brake <= 0:
         return None
 
     def propose(prev: np.ndarray, new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        hit = rng.random(new.shape[0]) < fraction
-        jump = rms * rng.standard_normal((int(hit.sum()), 2))
+        r = rng.random(new.shape[0])
+        hit = np.flatnonzero(r < fraction + brake)
+        jump = rms * rng.standard_normal((hit.size, 2))
+        if brake > 0:
+            braking = r[hit] >= fraction
+            b = hit[braking]
+            u = rng.uniform(0.0, 2.0, b.size)
+            jump[braking] = BRAKE_SPREAD * jump[braking] - u[:, None] * (new[b, :2] - prev[b, :2])
         out = new.copy()
         out[hit, :2] += jump  # an impulse: prev stays, so the jump is in the velocity too
         return prev, out, np.zeros(new.shape[0])
@@ -165,7 +183,7 @@ class CondensationTracker(Tracker):
         self.judge = Presence.learn(frame.image, frame.features, space, self.sampler, self.X0,
                                     self.settings.measurement, c)
         self.observation.start(frame.image, frame.features, space, self.sampler, self.X0, presence=self.judge)
-        self.jumps = translation_jumps(c.jump_fraction, c.jump_size * self.judge.app.size)
+        self.jumps = translation_jumps(c.jump_fraction, c.jump_size * self.judge.app.size, c.jump_brake)
 
     def _proposal(self, ev: Any, frame: FrameData):
         """The motion prior's jumps, and after ``reacquire_after`` lost frames the colour proposal."""

@@ -7,7 +7,8 @@ modes (a piecewise-Gaussian density); each frame (the steps are :mod:`trackcli.t
 2. ``K·S`` seeds (``S = mht.samples``) are drawn from that prior: each mode's prediction and
    draws around the modes in proportion to their weights; the drawn seeds also jump as
    CONDENSATION's samples do (``condensation.jump_fraction`` of them, by
-   ``condensation.jump_size`` object sizes RMS in translation: the motion prior is one);
+   ``condensation.jump_size`` object sizes RMS in translation, and ``jump_brake`` of them
+   braking: the motion prior is one);
 3. each seed climbs to a local maximum by ``mht.iterations`` Gauss–Newton steps: the
    Kalman tracker's measurement (the best feature inside the validation gate of every
    normal, :func:`trackcli.observe.measure.kalman_features`, summed into ``Z, S`` by
@@ -137,7 +138,7 @@ class MHTTracker(Tracker):
             self.judge = Presence.learn(frame.image, fimg, space, self.sampler, self.X0, m, self.settings.condensation)
             self.observation.start(frame.image, fimg, space, self.sampler, self.X0, presence=self.judge)
             c = self.settings.condensation
-            self.jumps = translation_jumps(c.jump_fraction, c.jump_size * self.judge.app.size)
+            self.jumps = translation_jumps(c.jump_fraction, c.jump_size * self.judge.app.size, c.jump_brake)
         judge = self.judge
         ev = judge.evidence(frame.image, fimg, self.centre)
         self.observation.prepare(frame.image, fimg, ev)
