@@ -366,6 +366,8 @@ def test_a_braking_jump_slows_stops_or_turns_back_the_predicted_velocity():
     both = translation_jumps(0.1, rms, brake=0.05)(prev, new, np.random.default_rng(2))[1]
     assert 0.14 < np.any(both != new, axis=1).mean() < 0.16
     assert translation_jumps(0.0, 3.0, brake=0.0) is None and translation_jumps(0.0, 3.0, brake=0.1) is not None
+    with pytest.raises(ConfigError, match="together at most 1"):
+        translation_jumps(0.9, 3.0, brake=0.2)
 
 
 @pytest.mark.parametrize("threads", [2, 3])

@@ -63,8 +63,12 @@ def translation_jumps(fraction: float, rms: float, brake: float = 0.0):
     against 0.76 for impulses over three seeds; `crossing` 0.42 against 0.89.)
 
     Drawing from this prior needs no importance correction (zero log-weights).
-    Returns None when there are no jumps.
+    Returns None when there are no jumps; raises :class:`ConfigError` when the two shares
+    add up to more than 1.
     """
+    if fraction + brake > 1:
+        raise ConfigError(f"condensation.jump_fraction ({fraction:g}) and jump_brake ({brake:g}) are shares of "
+                          "the samples: together at most 1")
     if rms <= 0 or fraction + brake <= 0:
         return None
 
