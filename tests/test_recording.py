@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -482,3 +483,15 @@ def test_histogram_rows_kept_compactly_give_the_same_heat_map():
     rows = np.vstack([histogram_grey(r[None])[0] for r in m])
     assert rows.dtype == np.uint8
     np.testing.assert_array_equal(histogram_image(rows), histogram_image(m))
+
+
+@pytest.mark.parametrize("preset, expected", [(None, "0"), ("250", "250")])
+def test_rerun_s_allocator_returns_freed_memory_at_once_unless_told_otherwise(preset, expected):
+    """Importing the recording module sets mimalloc's purge delay to 0 (read when Rerun loads),
+    so that a long recorded run does not keep freed pages; a value in the environment wins."""
+    env = {k: v for k, v in os.environ.items() if k != "MIMALLOC_PURGE_DELAY"}
+    if preset is not None:
+        env["MIMALLOC_PURGE_DELAY"] = preset
+    code = "import os, trackcli.io.recording; print(os.environ['MIMALLOC_PURGE_DELAY'])"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == expected

@@ -69,6 +69,12 @@ from trackcli.errors import ConfigError, DataError, InputError, TrackcliError
 
 log = logging.getLogger(__name__)
 
+# Rerun's native library allocates with mimalloc, which keeps freed pages a while before it
+# returns them.  While a long clip was tracked and recorded, the process grew by about 2 KB a
+# frame; returning them at once (read when Rerun loads, which is only ever from this module)
+# made it 0.8 KB a frame at the same speed (bench/track_memory.py).  A value the user set wins.
+os.environ.setdefault("MIMALLOC_PURGE_DELAY", "0")
+
 VIDEO = "video"
 SERIES = "series"
 HISTOGRAM = "histogram"
