@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -348,8 +349,6 @@ def weigh(samples: np.ndarray, loglik: Callable[[np.ndarray], np.ndarray],
             for b0 in starts[first::threads]:
                 score(b0)
 
-        from concurrent.futures import wait
-
         others = [thread_pool(threads - 1).submit(share, t) for t in range(1, min(threads, len(starts)))]
         try:
             share(0)
@@ -380,8 +379,6 @@ def automatic_threads() -> int:
 def thread_pool(threads: int) -> Any:
     """A process-wide pool of ``threads`` worker threads (made on first use, then reused)."""
     if threads not in _POOLS:
-        from concurrent.futures import ThreadPoolExecutor
-
         _POOLS[threads] = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="trackcli-weigh")
     return _POOLS[threads]
 
