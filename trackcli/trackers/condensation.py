@@ -530,8 +530,13 @@ def weighted_histogram(particles: ParticleSet, edges: np.ndarray, *, component: 
         raise ConfigError("edges: expected at least two strictly increasing bin edges")
     if not -particles.nx <= component < particles.nx:
         raise ConfigError(f"component: expected an index in [0, {particles.nx}), got {component!r}")
-    mass, _ = np.histogram(particles.cur[:, component], bins=edges, weights=particles.weights)
-    return mass
+    # np.histogram's binning, by one search of the edges (much faster for a few hundred samples):
+    # bin b holds edges[b] <= x < edges[b + 1], the last bin also x == edges[-1]
+    x = particles.cur[:, component]
+    b = np.searchsorted(edges, x, side="right") - 1
+    b[x == edges[-1]] = edges.size - 2
+    inside = (b >= 0) & (b < edges.size - 1)
+    return np.bincount(b[inside], weights=particles.weights[inside], minlength=edges.size - 1)
 
 
 # ---------------------------------------------------------------------------------------------
