@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import subprocess
 import sys
@@ -495,3 +496,31 @@ def test_rerun_s_allocator_returns_freed_memory_at_once_unless_told_otherwise(pr
     code = "import os, trackcli.io.recording; print(os.environ['MIMALLOC_PURGE_DELAY'])"
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == expected
+
+
+@pytest.mark.parametrize("check", ["0", None])
+def test_pandas_is_imported_by_a_recording_only_where_the_check_is_kept(tmp_path, check):
+    """With TRACKCLI_PANDAS_CHECK=0 (what the ``trackcli`` command sets) a recording is
+    written without pyarrow importing pandas, and pandas still imports afterwards; unset
+    (a library user), pyarrow's own check runs and imports pandas."""
+    if importlib.util.find_spec("pandas") is None:
+        pytest.skip("pandas is not installed, so pyarrow cannot import it either way")
+    env = {k: v for k, v in os.environ.items() if k != "TRACKCLI_PANDAS_CHECK"}
+    if check is not None:
+        env["TRACKCLI_PANDAS_CHECK"] = check
+    code = (
+        "import sys, numpy as np\n"
+        "from trackcli.io.recording import Recording\n"
+        f"with Recording({str(tmp_path / 'r.rrd')!r}, properties={{'seed': '1'}}) as rec:\n"
+        "    rec.set_frame(0, 0.0)\n"
+        "    rec.log_contour('video/estimate', np.zeros((5, 2)))\n"
+        "    rec.log_scalar('series/x', 1.0)\n"
+        "print('pandas' in sys.modules)\n"
+        "import pandas, pyarrow\n"
+        "print(pyarrow.array(pandas.Series([1.0, 2.0])).to_pylist())\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    imported, values = out.stdout.split("\n")[:2]
+    assert imported == ("False" if check == "0" else "True")
+    assert values == "[1.0, 2.0]"
+    assert (tmp_path / "r.rrd").stat().st_size > 0

@@ -1197,6 +1197,8 @@ def main() -> None:
     Rerun module by module took about 0.4 s, a tenth of a short ``track`` run.  Under a
     debugger, profiler or coverage tool the interpreter exits normally.
     """
+    # no pandas import by pyarrow in this process and its workers (trackcli.io.recording)
+    os.environ.setdefault("TRACKCLI_PANDAS_CHECK", "0")
     try:
         cli.main(prog_name="trackcli")
         code = 0

@@ -57,6 +57,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import sys
 import uuid
 from collections.abc import Mapping, Sequence
 from datetime import timedelta
@@ -74,6 +75,39 @@ log = logging.getLogger(__name__)
 # frame; returning them at once (read when Rerun loads, which is only ever from this module)
 # made it 0.8 KB a frame at the same speed (bench/track_memory.py).  A value the user set wins.
 os.environ.setdefault("MIMALLOC_PURGE_DELAY", "0")
+
+#: Environment variable: ``0`` makes :class:`Recording` let pyarrow's check for pandas fail
+#: at once (:func:`skip_pandas_check`).  pyarrow checks once per process whether pandas is
+#: installed, by importing it, when it first converts data for Rerun: about 0.25 s, a sixth
+#: of a short ``track`` run, and trackcli never hands pandas objects to pyarrow.  The
+#: ``trackcli`` command sets it to 0 for itself and the processes it starts (batch workers)
+#: unless it is set; code that imports trackcli as a library keeps pyarrow's behaviour.
+PANDAS_CHECK_ENV = "TRACKCLI_PANDAS_CHECK"
+
+
+def skip_pandas_check() -> None:
+    """Let pyarrow's one-time check for pandas find none, unless pandas is already imported.
+
+    pyarrow remembers the answer for the process: its pandas conversions (``from_pandas``,
+    ``to_pandas``) are then unavailable in this process.  pandas itself still imports.
+    """
+    if "pandas" in sys.modules:
+        return
+
+    class _NoPandas:
+        def find_spec(self, name: str, path: Any = None, target: Any = None) -> None:
+            if name == "pandas" or name.startswith("pandas."):
+                raise ModuleNotFoundError(f"{name} is not imported in this process", name=name)
+            return None
+
+    import pyarrow as pa
+
+    blocker = _NoPandas()
+    sys.meta_path.insert(0, blocker)
+    try:
+        pa.array([0.0])  # the first conversion makes the check
+    finally:
+        sys.meta_path.remove(blocker)
 
 VIDEO = "video"
 SERIES = "series"
@@ -517,6 +551,8 @@ class Recording:
                     f"cannot write recording {self.path}: Rerun logging is disabled "
                     "(RERUN=off in the environment?)"
                 )
+            if os.environ.get(PANDAS_CHECK_ENV, "1") == "0":
+                skip_pandas_check()
             stream.set_log_time_enabled(False)
             try:
                 stream.save(self.tmp_path)
