@@ -319,6 +319,37 @@ def _density_reference(img, centre, size, threshold, stride=3):
     return max(count / max(length, 1), observe.MIN_DENSITY)
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_normals_with_features_counts_what_the_feature_scan_finds(seed):
+    """The compiled count of normals with a feature agrees with the list of features of
+    measure.find_features, for each polarity and search width, across the frame's edges."""
+    space, judge, sampler, ev = ellipse_scene(seed)
+    rng = np.random.default_rng(200 + seed)
+    n = 200
+    X = np.zeros((n, 4))
+    X[:, :2] = rng.normal(0, 60, (n, 2))
+    X[:, 2:] = rng.normal(0, 0.3, (n, 2))
+    X[:30, 0] = rng.uniform(50, 110, 30)  # across the right edge
+    X[30:40, 1] = rng.uniform(1e3, 1e5, 10)  # far outside: nothing found
+    pts, nrm = space.points_normals(X, sampler)
+    agree = total = 0
+    for polarity in measure.POLARITIES:
+        for h in (judge.h, 4.3, 40.0):
+            for k in range(n):
+                got = observe.normals_with_features(ev.fimg, pts[k], nrm[k], h=h, threshold=judge.threshold,
+                                                    sign=measure.polarity_sign(polarity))
+                want = int(np.count_nonzero(measure.find_features(ev.fimg, pts[k], nrm[k], h,
+                                                                  threshold=judge.threshold,
+                                                                  polarity=polarity).counts()))
+                agree += got == want
+                total += 1
+                # the scan reads the image through cv2.remap (fixed-point weights), the kernel
+                # in float32: a maximum at the contrast threshold can, rarely, fall either way
+                assert abs(got - want) <= 1
+            assert observe.normals_with_features(ev.fimg, pts[35], nrm[35], h=h, threshold=judge.threshold) == 0
+    assert agree / total >= 0.98
+
+
 def test_feature_density_counts_what_the_numpy_scan_counts():
     rng = np.random.default_rng(4)
     for _ in range(60):

@@ -76,7 +76,7 @@ from trackcli.observe.kernels import colour_lookup, count_line_features, discrim
 from trackcli.observe.measure import _as_image, _as_normals, _remap_rows, _scan_chunks
 
 __all__ = ["Appearance", "FrameEvidence", "colour_peaks", "confidence", "evidence", "feature_density", "hsv_bins",
-           "learn_appearance", "per_normal", "per_normal_reference", "presence", "reacquisition_proposal", "score"]
+           "learn_appearance", "normals_with_features", "per_normal", "per_normal_reference", "presence", "reacquisition_proposal", "score"]
 
 #: HSV histogram bins (hue, saturation, value).
 HIST_BINS = (8, 8, 4)
@@ -323,6 +323,36 @@ def per_normal(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: 
     colour = np.empty(k_total, np.float32)
     discriminant_normals(*args, log_d, colour)
     return log_d.reshape(lead), colour.astype(np.float64).reshape(lead)
+
+
+def normals_with_features(fimg: np.ndarray, points: np.ndarray, normals: np.ndarray, *, h: float, threshold: float,
+                          sign: int = 0) -> int:
+    """How many of the normals (M, 2) have a feature on ``[-h, h]``: a local maximum of the
+    intensity difference along the normal (its magnitude for ``sign`` 0; of that sign for
+    ``sign`` ±1) at least ``threshold``, inside the image.
+
+    The compiled kernel of :func:`per_normal` in counting form (every feature scores 1), so
+    it reads the image exactly as the discriminant does; it reports how many normals of an
+    estimate found an edge, at a few microseconds a curve.
+    """
+    img = _as_image(fimg)
+    pts, nrm, lead = _as_normals(points, normals)
+    m = pts.shape[0]
+    if m == 0:
+        return 0
+    pts = np.ascontiguousarray(pts, dtype=np.float32)
+    nrm = np.ascontiguousarray(nrm, dtype=np.float32)
+    if not (np.isfinite(pts).all() and np.isfinite(nrm).all()):
+        raise DataError("points and normals must be finite; got NaN or infinite coordinates")
+    ones32, zeros = np.ones(m, np.float32), np.zeros(m)
+    none32 = np.zeros(0, np.float32)
+    log_d = np.empty(m)
+    # scale 0: every feature weighs exp(0) = 1; with q = 1/2 and no other terms,
+    # log_d = log(1/2 + number of features)
+    discriminant_normals(img, img, pts, nrm, np.full(m, int(np.sign(sign)), np.int8), int(math.ceil(float(h))),
+                         np.float32(h), np.float32(threshold), np.float32(0.0), ones32, ones32, zeros, zeros, 0.5,
+                         none32, none32, log_d, np.empty(m, np.float32))
+    return int(np.count_nonzero(log_d > math.log(1.0)))
 
 
 def per_normal_reference(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float,

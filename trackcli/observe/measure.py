@@ -236,6 +236,11 @@ def _as_half_widths(h: float | np.ndarray, lead: tuple[int, ...], name: str) -> 
     return np.ascontiguousarray(arr, dtype=np.float32).reshape(-1)
 
 
+def polarity_sign(polarity: str) -> int:
+    """The sign of the intensity difference a polarity accepts: 0 (any), -1 or +1."""
+    return _check_polarity(polarity)
+
+
 def _check_polarity(polarity: str) -> int:
     try:
         return _POLARITY_SIGN[polarity]

@@ -247,7 +247,8 @@ class CondensationTracker(Tracker):
         if np.isfinite(centroid).all():
             self.centre = centroid
         # normals of the estimate with a feature within the search range (reported, not used)
-        feats = measure.find_features(frame.features, pts, nrm, c.search, threshold=m.threshold, polarity=m.polarity)
+        n_found = observe.normals_with_features(frame.features, pts, nrm, h=c.search, threshold=m.threshold,
+                                                sign=measure.polarity_sign(m.polarity))
         hist = cond.weighted_histogram(particles, self.edges, component=0)
         display: dict[str, Any] = {"histogram": hist, "hist_edges": self.edges}
         if c.display_particles:
@@ -263,7 +264,7 @@ class CondensationTracker(Tracker):
             extra = {f"p_{name}": float(v) for name, v in zip(self.mixed.names, p)}
         return FrameResult(
             index=frame.index, time=frame.time, X=X, X_std=X_std, contour=contour,
-            centroid=centroid, bbox=bbox, n_found=int(np.count_nonzero(feats.counts())), n_normals=m.n_normals,
+            centroid=centroid, bbox=bbox, n_found=n_found, n_normals=m.n_normals,
             gate_rms=float(c.search), ess=float(ess), loglik=loglik_mean, lost=bool(lost), confidence=conf,
             log_d=log_d, display=display, extra=extra,
         )
