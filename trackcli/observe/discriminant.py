@@ -76,7 +76,8 @@ from trackcli.observe.kernels import colour_lookup, count_line_features, discrim
 from trackcli.observe.measure import _as_image, _as_normals, _remap_rows, _scan_chunks
 
 __all__ = ["Appearance", "FrameEvidence", "colour_peaks", "confidence", "evidence", "feature_density", "hsv_bins",
-           "learn_appearance", "normals_with_features", "per_normal", "per_normal_reference", "presence", "reacquisition_proposal", "score"]
+           "learn_appearance", "normals_with_features", "per_normal", "per_normal_reference", "presence",
+           "reacquisition_proposal", "score"]
 
 #: HSV histogram bins (hue, saturation, value).
 HIST_BINS = (8, 8, 4)
@@ -336,7 +337,7 @@ def normals_with_features(fimg: np.ndarray, points: np.ndarray, normals: np.ndar
     estimate found an edge, at a few microseconds a curve.
     """
     img = _as_image(fimg)
-    pts, nrm, lead = _as_normals(points, normals)
+    pts, nrm, _ = _as_normals(points, normals)
     m = pts.shape[0]
     if m == 0:
         return 0
@@ -348,11 +349,11 @@ def normals_with_features(fimg: np.ndarray, points: np.ndarray, normals: np.ndar
     none32 = np.zeros(0, np.float32)
     log_d = np.empty(m)
     # scale 0: every feature weighs exp(0) = 1; with q = 1/2 and no other terms,
-    # log_d = log(1/2 + number of features)
+    # log_d = log(1/2 + number of features), > 0 from one feature up
     discriminant_normals(img, img, pts, nrm, np.full(m, int(np.sign(sign)), np.int8), int(math.ceil(float(h))),
                          np.float32(h), np.float32(threshold), np.float32(0.0), ones32, ones32, zeros, zeros, 0.5,
                          none32, none32, log_d, np.empty(m, np.float32))
-    return int(np.count_nonzero(log_d > math.log(1.0)))
+    return int(np.count_nonzero(log_d > 0.0))
 
 
 def per_normal_reference(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float,
