@@ -319,20 +319,23 @@ def _points(value: Any, name: str, *, leading: int | None = None) -> np.ndarray:
     return a
 
 
-def _strips_arrow(strips: Sequence[np.ndarray]) -> Any:
-    """Line strips ((n_i, 2) float32 arrays) as the Arrow array of Rerun's ``LineStrip2D`` batch.
+def _strips_arrow(blocks: Sequence[np.ndarray]) -> Any:
+    """Line strips as the Arrow array of Rerun's ``LineStrip2D`` batch.
 
-    Built from one buffer of points and the strips' offsets; Rerun's own conversion takes
-    each strip separately, twenty times slower for the particle contours of a frame.
+    ``blocks`` are float32 arrays of shape (K, n, 2): K strips of n points each (the K
+    particle contours of a frame, say), in order.  Built from one buffer of points and the
+    strips' offsets; Rerun's own conversion takes each strip separately, twenty times slower
+    for the particle contours of a frame.
     """
     import pyarrow as pa
     from rerun.components import LineStrip2DBatch
 
     kind = LineStrip2DBatch._ARROW_DATATYPE
-    lengths = np.fromiter((len(p) for p in strips), dtype=np.int32, count=len(strips))
-    offsets = np.zeros(len(strips) + 1, dtype=np.int32)
+    lengths = (np.concatenate([np.full(b.shape[0], b.shape[1], np.int32) for b in blocks]) if len(blocks)
+               else np.zeros(0, np.int32))
+    offsets = np.zeros(lengths.size + 1, dtype=np.int32)
     np.cumsum(lengths, out=offsets[1:])
-    flat = (np.concatenate([np.asarray(p, dtype=np.float32).reshape(-1) for p in strips]) if len(strips)
+    flat = (np.concatenate([np.asarray(b, dtype=np.float32).reshape(-1) for b in blocks]) if len(blocks)
             else np.zeros(0, np.float32))
     points = pa.FixedSizeListArray.from_arrays(pa.array(flat, type=pa.float32()), type=kind.value_type)
     return pa.ListArray.from_arrays(pa.array(offsets), points, type=kind)
@@ -681,10 +684,11 @@ class Recording:
                 else:
                     lengths[name] = [len(v) for v in parts]
                     if name == "strips":
-                        values[name] = _strips_arrow([strip for v in parts for strip in v])
+                        values[name] = _strips_arrow(parts)
                     elif name == "colors":  # RGB and RGBA rows together: RGB is RGBA with alpha 255
                         values[name] = np.concatenate(
-                            [v if v.shape[-1] == 4 else np.pad(v, ((0, 0), (0, 1)), constant_values=255) for v in parts])
+                            [v if v.shape[-1] == 4 else np.concatenate([v, np.full((len(v), 1), 255, np.uint8)], axis=1)
+                             for v in parts])
                     else:
                         values[name] = np.concatenate(parts)
             # one call for all components (some archetypes check one against another), then
@@ -701,7 +705,7 @@ class Recording:
 
         if self._batch is None or self._frame is None:
             if "strips" in components:
-                components["strips"] = _strips_arrow(components["strips"])
+                components["strips"] = _strips_arrow([components["strips"]])
             self.stream.log(entity, getattr(rr, kind).from_fields(**components))
             return
         names = tuple(k for k, v in components.items() if v is not None)
@@ -804,7 +808,7 @@ class Recording:
         pts = _points(points, "points", leading=1)
         if closed and len(pts) > 1:
             pts = np.concatenate([pts, pts[:1]])
-        self._emit(entity, "LineStrips2D", strips=[pts], colors=_color(color)[None],
+        self._emit(entity, "LineStrips2D", strips=pts[None], colors=_color(color)[None],
                    radii=np.array([_half_width(width)], np.float32))
 
     def log_contours(self, entity: str, curves: np.ndarray, weights: np.ndarray | None = None,
@@ -828,7 +832,7 @@ class Recording:
         c, colors = c[order], colors[order]
         if closed and c.shape[1] > 1:
             c = np.concatenate([c, c[:, :1]], axis=1)
-        self._emit(entity, "LineStrips2D", strips=list(c), colors=colors, radii=np.array([_half_width(width)], np.float32))
+        self._emit(entity, "LineStrips2D", strips=c, colors=colors, radii=np.array([_half_width(width)], np.float32))
 
     def log_points(self, entity: str, pts: np.ndarray, colors: Any = None,
                    radii: float | np.ndarray | None = None) -> None:
@@ -879,7 +883,7 @@ class Recording:
             raise DataError(
                 f"starts and ends must have the same shape, got {a.shape} and {b.shape}"
             )
-        self._emit(entity, "LineStrips2D", strips=list(np.stack([a, b], axis=1)), colors=_color(color)[None],
+        self._emit(entity, "LineStrips2D", strips=np.stack([a, b], axis=1), colors=_color(color)[None],
                    radii=np.array([_half_width(width)], np.float32))
 
     # -- time series ---------------------------------------------------------
