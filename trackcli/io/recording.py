@@ -83,6 +83,7 @@ os.environ.setdefault("MIMALLOC_PURGE_DELAY", "0")
 #: ``trackcli`` command sets it to 0 for itself and the processes it starts (batch workers)
 #: unless it is set; code that imports trackcli as a library keeps pyarrow's behaviour.
 PANDAS_CHECK_ENV = "TRACKCLI_PANDAS_CHECK"
+_pandas_check_done = False
 
 
 def skip_pandas_check() -> None:
@@ -90,9 +91,12 @@ def skip_pandas_check() -> None:
 
     pyarrow remembers the answer for the process: its pandas conversions (``from_pandas``,
     ``to_pandas``) are then unavailable in this process.  pandas itself still imports.
+    Only the first call in a process does anything.
     """
-    if "pandas" in sys.modules:
+    global _pandas_check_done
+    if _pandas_check_done or "pandas" in sys.modules:
         return
+    _pandas_check_done = True
 
     class _NoPandas:
         def find_spec(self, name: str, path: Any = None, target: Any = None) -> None:

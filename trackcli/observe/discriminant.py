@@ -292,14 +292,20 @@ def _normal_terms(app: Appearance, ev: FrameEvidence, points: np.ndarray, normal
     return pts, nrm, lead, terms
 
 
-def _kernel_args(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float,
-                 sigma: float, threshold: float, miss: float) -> tuple[tuple[int, ...], tuple[Any, ...]]:
-    """``(lead, arguments)`` of the compiled kernels for these curves, checked."""
-    pts, nrm, lead, terms = _normal_terms(app, ev, points, normals, h=h, sigma=sigma, miss=miss)
+def _kernel_normals(pts: np.ndarray, nrm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Flat points and normals as the compiled kernels take them: float32, contiguous, finite."""
     pts = np.ascontiguousarray(pts, dtype=np.float32)
     nrm = np.ascontiguousarray(nrm, dtype=np.float32)
     if not (np.isfinite(pts).all() and np.isfinite(nrm).all()):
         raise DataError("points and normals must be finite (and within float32 range); got NaN or infinite coordinates")
+    return pts, nrm
+
+
+def _kernel_args(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float,
+                 sigma: float, threshold: float, miss: float) -> tuple[tuple[int, ...], tuple[Any, ...]]:
+    """``(lead, arguments)`` of the compiled kernels for these curves, checked."""
+    pts, nrm, lead, terms = _normal_terms(app, ev, points, normals, h=h, sigma=sigma, miss=miss)
+    pts, nrm = _kernel_normals(pts, nrm)
     base, log_ratio_in, inv_in, inv_out = terms
     u_colour, weights = _colour_profile(app)
     cmap = _as_image(ev.cmap)
@@ -341,10 +347,7 @@ def normals_with_features(fimg: np.ndarray, points: np.ndarray, normals: np.ndar
     m = pts.shape[0]
     if m == 0:
         return 0
-    pts = np.ascontiguousarray(pts, dtype=np.float32)
-    nrm = np.ascontiguousarray(nrm, dtype=np.float32)
-    if not (np.isfinite(pts).all() and np.isfinite(nrm).all()):
-        raise DataError("points and normals must be finite; got NaN or infinite coordinates")
+    pts, nrm = _kernel_normals(pts, nrm)
     ones32, zeros = np.ones(m, np.float32), np.zeros(m)
     none32 = np.zeros(0, np.float32)
     log_d = np.empty(m)
