@@ -335,6 +335,27 @@ def test_unsupported_videos_fall_back_to_jpeg(tmp_path, name, fourcc):
 # ---------------------------------------------------------------------------
 
 
+def test_held_rows_are_sent_by_size_or_count_and_all_arrive(tmp_path):
+    """``flush_overlays(min_bytes, max_rows)`` sends an entity's rows once they hold that much
+    data or that many rows, keeps the others, and the recording ends with every row."""
+    out = tmp_path / "held.rrd"
+    n = 12
+    with Recording(out) as rec:
+        rec.batch_overlays()
+        for i in range(n):
+            rec.set_frame(i, i / FPS)
+            rec.log_frame(_synthetic_frame(i))  # a JPEG of ~1 kB a frame
+            rec.log_points("video/centroid", np.array([[float(i), 1.0]]))  # 8 bytes a frame
+            if i % 2 == 1:
+                rec.flush_overlays(min_bytes=1000, max_rows=8)
+                held = {key[0]: len(rows) for key, rows in rec._batch.items()}
+                assert "video" not in held  # two frames of images are over 1000 bytes
+                # the centroid's rows wait until there are 8 of them
+                assert held.get("video/centroid", 0) == (i + 1) % 8
+    assert len(ru.read_column(out, "video", "EncodedImage:blob")) == n
+    assert ru.read_column(out, "video/centroid", "Points2D:positions") == [[[float(i), 1.0]] for i in range(n)]
+
+
 def test_exception_leaves_no_file(tmp_path):
     out = tmp_path / "sub" / "broken.rrd"
     with pytest.raises(RuntimeError, match="tracker blew up"):

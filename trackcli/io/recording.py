@@ -323,6 +323,17 @@ def _points(value: Any, name: str, *, leading: int | None = None) -> np.ndarray:
     return a
 
 
+def _nbytes(value: Any) -> int:
+    """The size of a held component's data, roughly (arrays and byte strings exactly)."""
+    if isinstance(value, np.ndarray):
+        return value.nbytes
+    if isinstance(value, (bytes, str)):
+        return len(value)
+    if isinstance(value, (list, tuple)):
+        return sum(_nbytes(v) for v in value)
+    return 8
+
+
 def _strips_arrow(blocks: Sequence[np.ndarray]) -> Any:
     """Line strips as the Arrow array of Rerun's ``LineStrip2D`` batch.
 
@@ -533,6 +544,7 @@ class Recording:
         self._bar_edges: dict[str, np.ndarray] = {}
         self._frame: tuple[int, float] | None = None
         self._batch: dict[tuple[str, str, tuple[str, ...]], list[tuple[int, float, tuple]]] | None = None
+        self._held: dict[tuple[str, str, tuple[str, ...]], int] = {}  # bytes of each entity's held rows
 
     # -- lifecycle ---------------------------------------------------------
 
@@ -663,12 +675,25 @@ class Recording:
         if self._batch is None:
             self._batch = {}
 
-    def flush_overlays(self, *, last: bool = False) -> None:
+    def flush_overlays(self, *, last: bool = False, min_bytes: int = 0, max_rows: int = 0) -> None:
         """Send the rows held since :meth:`batch_overlays` (or the last flush).
 
-        With ``last``, go back to logging every call at once.
+        With ``last``, send everything and go back to logging every call at once.  Otherwise
+        an entity's rows are sent once they hold at least ``min_bytes`` of data or
+        ``max_rows`` rows (either 0: no limit of that kind), and kept otherwise.  Every send
+        makes a chunk, and the recording's file writer keeps about a kilobyte of every chunk
+        in memory until the file is closed: holding the light entities (a centroid, a
+        histogram) for more frames than the images keeps that growth small.
         """
-        batch, self._batch = self._batch, (None if last else {})
+        if last or (min_bytes <= 0 and max_rows <= 0):
+            batch, self._batch = self._batch, (None if last else {})
+            self._held = {}
+        else:
+            batch = {}
+            for key, rows in list((self._batch or {}).items()):
+                if (min_bytes > 0 and self._held.get(key, 0) >= min_bytes) or (max_rows > 0 and len(rows) >= max_rows):
+                    batch[key] = self._batch.pop(key)
+                    self._held.pop(key, None)
         if not batch:
             return
         import rerun as rr
@@ -713,8 +738,10 @@ class Recording:
             self.stream.log(entity, getattr(rr, kind).from_fields(**components))
             return
         names = tuple(k for k, v in components.items() if v is not None)
-        self._batch.setdefault((entity, kind, names), []).append(
-            (self._frame[0], self._frame[1], tuple(components[k] for k in names)))
+        key = (entity, kind, names)
+        values = tuple(components[k] for k in names)
+        self._batch.setdefault(key, []).append((self._frame[0], self._frame[1], values))
+        self._held[key] = self._held.get(key, 0) + sum(_nbytes(v) for v in values)
 
     # -- frames ------------------------------------------------------------
 
