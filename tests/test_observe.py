@@ -159,6 +159,45 @@ def test_reacquisition_weights_keep_the_set_a_fair_sample_of_the_prior():
     assert np.allclose(var, 100.0, rtol=0.03)
 
 
+def test_reacquisition_with_scale_search_keeps_the_prior_and_spreads_the_new_scales():
+    """Redrawn samples take scales log-uniform in [1/2, 2]; with a flat likelihood the weights
+    restore the prior's translation and log-scale moments."""
+    rng = np.random.default_rng(5)
+    n = 200_000
+    space = ellipse_space(150, 120, 20, 25)
+    prior = np.zeros((n, 4))
+    prior[:, :2] = rng.normal(0.0, 10.0, (n, 2))
+    log_s = rng.normal(0.0, 0.1, n)
+    prior[:, 2] = np.exp(log_s) - 1.0
+
+    def log_scale(X):
+        return np.log(space.pose(X)[:, 3])
+
+    search = observe.ScaleSearch(log_scale, space.scaled, 2.0)
+    centres = np.array([[250.0, 120.0], [190.0, 60.0]])
+    propose = observe.reacquisition_proposal(centres, np.array([2.0, 1.0]), space.origin, 40.0, (W, H),
+                                             fraction=0.3, reappear=1e-9, scale=search)
+    prev = prior - 0.01
+    out_prev, out, log_c = propose(prev, prior, rng)
+    moved = np.any(out[:, :2] != prior[:, :2], axis=1)
+    new_ls = log_scale(out[moved])
+    assert abs(moved.mean() - 0.3) < 0.01
+    assert new_ls.min() >= -math.log(2) - 1e-9 and new_ls.max() <= math.log(2) + 1e-9
+    counts, _ = np.histogram(new_ls, bins=4, range=(-math.log(2), math.log(2)))
+    assert counts.min() > 0.9 * counts.mean()  # uniform in log-scale
+    assert np.allclose(space.pose(out[moved])[:, 2], 0.0, atol=1e-9)  # rotation kept
+    assert np.array_equal(out_prev[moved], out[moved])  # at rest, scale included
+    assert np.array_equal(out[~moved], prior[~moved])
+    w = np.exp(log_c - log_c.max())
+    w /= w.sum()
+    mean = w @ out[:, :2]
+    assert np.allclose(mean, 0.0, atol=0.2)
+    assert np.allclose(w @ (out[:, :2] - mean) ** 2, 100.0, rtol=0.04)
+    ls = log_scale(out)
+    assert abs(w @ ls) < 0.003
+    assert w @ (ls - w @ ls) ** 2 == pytest.approx(0.01, rel=0.06)
+
+
 def test_colour_peaks_find_an_object_coloured_region_of_the_objects_size():
     rng = np.random.default_rng(4)
     first = object_frame(rng, centre=(240.0, 120.0))

@@ -105,6 +105,28 @@ def test_similarity_map_recovered_exactly_with_pose(theta, scale, tx, ty):
     np.testing.assert_allclose(Sa.pose(Sa.project(Q)), [*t_anchor, theta, scale], atol=1e-9)
 
 
+@FAST
+@given(st.floats(-3.0, 3.0), st.floats(0.3, 3.0), st.floats(-200, 200), st.floats(-200, 200), st.floats(0.25, 4.0))
+def test_scaled_multiplies_the_scale_and_keeps_position_and_rotation(theta, scale, tx, ty, factor):
+    Q0 = template(4)
+    R = scale * np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
+    Q = map_affine(Q0, R, [tx, ty])
+    for make in (similarity, affine):
+        S = make(BASIS, Q0)
+        X = S.project(Q)
+        Y = S.scaled(np.stack([X, X]), np.array([factor, 1.0]))
+        pose = S.pose(X)
+        np.testing.assert_allclose(S.pose(Y[0]), [*pose[:3], scale * factor], atol=1e-8)
+        np.testing.assert_allclose(Y[1], X, atol=1e-9)
+        # the curve itself is the old one scaled about its anchor
+        c = S.origin + X[:2]
+        expected = np.concatenate([c[0] + factor * (Q[:NQ] - c[0]), c[1] + factor * (Q[NQ:] - c[1])])
+        np.testing.assert_allclose(S.to_control(Y[0]), expected, atol=1e-7)
+    # without scale in the space the curves come back unchanged
+    T = translation(BASIS, Q0)
+    np.testing.assert_allclose(T.scaled(np.array([tx, ty]), 2.0), [tx, ty], atol=1e-9)
+
+
 def test_known_affine_map_recovered_exactly():
     Q0 = template(3)
     S = affine(BASIS, Q0)

@@ -169,6 +169,8 @@ class CondensationSettings:
     reacquire: bool = _f(True, "bool", "when lost, draw a share of the samples from the colour map of the whole frame (importance sampling)")
     reacquire_after: int = _f(3, "int", "frames in a row the tracker must be lost before the colour proposal is used (a short dip, e.g. the object brushing the frame's edge, is left to the motion model)", lo=1, hi=1000)
     reacquire_fraction: float = _f(0.25, "float", "share of the samples drawn from the colour proposal while lost", lo=0, lo_open=True, hi=1)
+    reacquire_scale: float = _f(2.0, "float", "the samples drawn from the colour proposal also take a scale log-uniform within [1/s, s] of the template's (the object may be found again nearer or farther than it was lost); 1: the template's scale only", lo=1, hi=10)
+    reacquire_scale_reference: float = _f(1.0, "float", "reacquire_scale is used only when the template's presence score on its first frame (evidence per normal) is at least this: where the template is barely more object-like than clutter, other scales find clutter as readily as the object")
     jump_fraction: float = _f(0.1, "float", "share of the samples given a jump: an impulse that moves the predicted position and changes the velocity by the same amount (the motion prior is a mixture of smooth motion and abrupt moves: kicks, turns, camera shake)", lo=0, hi=1)
     jump_size: float = _f(0.3, "float", "RMS size of such a jump, in object sizes (square root of the template's area)", lo=0, hi=10)
     jump_brake: float = _f(0.02, "float", "share of the samples given a braking jump (besides the jumps of jump_fraction): the velocity v changes by -u*v, u uniform in [0, 2] (slowing, stopping, turning back: a bounce), plus 0.3 of jump_size at random", lo=0, hi=1)

@@ -66,12 +66,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import cv2
 import numpy as np
 
-from trackcli.errors import DataError
+from trackcli.errors import ConfigError, DataError
 from trackcli.observe.kernels import colour_lookup, count_line_features, discriminant_curves, discriminant_normals
 from trackcli.observe.measure import _as_image, _as_normals, _remap_rows, _scan_chunks
 
@@ -498,13 +498,34 @@ def _log_gauss2(d: np.ndarray, cov: np.ndarray) -> np.ndarray:
     return -0.5 * q - 0.5 * logdet - math.log(2 * math.pi)
 
 
+#: standard deviation (of log-scale) added to the spread of the predicted scales when a
+#: Gaussian is fitted to them: a sample set that has collapsed onto one scale still has a density
+SCALE_SPREAD = 0.02
+
+
+@dataclass(frozen=True)
+class ScaleSearch:
+    """How :func:`reacquisition_proposal` redraws the scale of its samples.
+
+    ``log_scale(X)`` is the log of each sample's scale relative to the template, (n,);
+    ``rescale(X, factor)`` multiplies each sample's scale by ``factor`` (n,), keeping its
+    position and rotation (:meth:`trackcli.shapes.shape_space.ShapeSpace.scaled`); new
+    scales are drawn log-uniform within ``[1 / largest, largest]`` of the template's.
+    """
+
+    log_scale: Callable[[np.ndarray], np.ndarray]
+    rescale: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    largest: float
+
+
 def reacquisition_proposal(centres: np.ndarray, strengths: np.ndarray, origin: np.ndarray, size: float,
-                           frame_size: tuple[int, int], *, fraction: float, reappear: float = 0.1):
+                           frame_size: tuple[int, int], *, fraction: float, reappear: float = 0.1,
+                           scale: ScaleSearch | None = None):
     """An importance-sampling step for CONDENSATION while the object is lost.
 
     A share ``fraction`` of the predicted samples has its translation redrawn from ``g``, a
     mixture of isotropic Gaussians (standard deviation 0.1 object sizes) at the colour peaks
-    ``centres`` weighted by ``strengths``, at rest (its previous translation set equal to the
+    ``centres`` weighted by ``strengths``, at rest (its previous state set equal to the
     new one); the other components of those samples are kept.
     The target prior is the dynamics' prediction ``f`` mixed with a small probability
     ``reappear`` that the object is anywhere in the frame (uniform ``u``): while lost, the
@@ -517,6 +538,11 @@ def reacquisition_proposal(centres: np.ndarray, strengths: np.ndarray, origin: n
     the weighted set a fair sample of that prior times the likelihood (the importance
     weights of Isard & Blake's ICONDENSATION).
 
+    With ``scale``, the redrawn samples also get a new scale, log-uniform within
+    ``[1 / scale.largest, scale.largest]`` of the template's (an object that comes back, or
+    is found again, nearer or farther than it was lost); ``f`` then includes a Gaussian
+    fitted to the predicted log-scales, and ``u`` and ``g`` the log-uniform density.
+
     Returns ``propose(prev, predicted, rng) -> (prev, shapes, log_correction)`` for
     :func:`trackcli.trackers.condensation.step`, or None when there is no peak.
     """
@@ -527,6 +553,9 @@ def reacquisition_proposal(centres: np.ndarray, strengths: np.ndarray, origin: n
     sd = 0.1 * size
     means = np.asarray(centres, dtype=np.float64) - np.asarray(origin, dtype=np.float64)[:2]
     log_u = -math.log(frame_size[0] * frame_size[1])
+    span = math.log(scale.largest) if scale is not None else 0.0
+    if scale is not None and not span > 0:
+        raise ConfigError(f"scale search: the largest scale must be above 1, got {scale.largest!r}")
 
     def propose(prev: np.ndarray, new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         n = new.shape[0]
@@ -536,10 +565,17 @@ def reacquisition_proposal(centres: np.ndarray, strengths: np.ndarray, origin: n
         k = int(round(fraction * n))
         out = new.copy()
         out_prev = prev.copy()
+        if scale is not None:
+            log_s = scale.log_scale(new)
+            s_mu, s_var = float(log_s.mean()), float(log_s.var()) + SCALE_SPREAD**2
         if k > 0:
             idx = rng.choice(n, size=k, replace=False)
             comp = rng.choice(means.shape[0], size=k, p=w)
             out[idx, :2] = means[comp] + sd * rng.standard_normal((k, 2))
+            if scale is not None:
+                target = rng.uniform(-span, span, k)
+                out[idx] = scale.rescale(out[idx], np.exp(target - log_s[idx]))
+                out_prev[idx] = out[idx]
             # a sample found this way starts at rest: no velocity from where its parent was
             out_prev[idx, :2] = out[idx, :2]
         t = out[:, :2]
@@ -548,7 +584,14 @@ def reacquisition_proposal(centres: np.ndarray, strengths: np.ndarray, origin: n
         comp_log = np.log(w)[None, :] - 0.5 * (diff * diff).sum(axis=2) / sd**2 - math.log(2 * math.pi * sd * sd)
         top = comp_log.max(axis=1)
         log_g = top + np.log(np.exp(comp_log - top[:, None]).sum(axis=1))
-        log_prior = np.logaddexp(math.log1p(-reappear) + log_f, math.log(reappear) + log_u)
+        log_u_all = log_u
+        if scale is not None:
+            ls = scale.log_scale(out)
+            log_f = log_f - 0.5 * (ls - s_mu) ** 2 / s_var - 0.5 * math.log(2 * math.pi * s_var)
+            log_us = np.where(np.abs(ls) <= span * (1 + 1e-9), -math.log(2 * span), -np.inf)
+            log_g = log_g + log_us
+            log_u_all = log_u + log_us
+        log_prior = np.logaddexp(math.log1p(-reappear) + log_f, math.log(reappear) + log_u_all)
         log_q = np.logaddexp(math.log1p(-fraction) + log_f if fraction < 1 else -np.inf, math.log(fraction) + log_g)
         return out_prev, out, log_prior - log_q
 

@@ -200,6 +200,26 @@ class ShapeSpace:
         """
         return (self._check_Q(Q) - self.Q0) @ self.pinv.T
 
+    def scaled(self, X, factor) -> np.ndarray:
+        """Curves scaled by ``factor`` about their position ``origin + (tx, ty)``: (..., Nx).
+
+        ``factor`` (broadcast over the leading dimensions) multiplies the size and keeps the
+        translation and the rotation: in a similarity space ``1 + X₂`` and ``X₃`` are
+        multiplied by it, in an affine space the whole matrix ``A``.  Any other space gets
+        the scaled control points projected onto it; a translation space, which has no
+        scale, gives the curves back unchanged.
+        """
+        X = self._check_X(X)
+        if self.base_kind == "translation":
+            return np.array(X, dtype=float)
+        f = np.asarray(factor, dtype=float)[..., None]
+        Q = self.to_control(X)
+        nq = self.Nq
+        for axis, part in enumerate((slice(0, nq), slice(nq, 2 * nq))):
+            c = self.origin[axis] + X[..., axis : axis + 1]
+            Q[..., part] = c + f * (Q[..., part] - c)
+        return self.project(Q)
+
     def points(self, X, sampler: CurveSampler) -> np.ndarray:
         """Curve points ``r(s_i)``: (..., Nx) → (..., M, 2)."""
         self._check_sampler(sampler)

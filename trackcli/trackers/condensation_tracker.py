@@ -197,8 +197,22 @@ class CondensationTracker(Tracker):
         peaks, strengths = observe.colour_peaks(ev.cmap, self.judge.app.size)
         reacquire = observe.reacquisition_proposal(
             peaks, strengths, self.space.origin, self.judge.app.size, (frame.image.shape[1], frame.image.shape[0]),
-            fraction=c.reacquire_fraction)
+            fraction=c.reacquire_fraction, scale=self._scale_search())
         return self.jumps if reacquire is None else _chain(self.jumps, reacquire)
+
+    def _scale_search(self) -> observe.ScaleSearch | None:
+        """The re-acquisition's scale search, or None: not asked for, a space without scale,
+        or a template whose presence score on its first frame is below
+        ``reacquire_scale_reference``."""
+        c, space = self.settings.condensation, self.space
+        if (c.reacquire_scale <= 1 or space.base_kind == "translation"
+                or not self.judge.reference >= c.reacquire_scale_reference):  # NaN: no reference
+            return None
+
+        def log_scale(X: np.ndarray) -> np.ndarray:
+            return np.log(np.maximum(space.pose(X)[:, 3], 1e-9))
+
+        return observe.ScaleSearch(log_scale, space.scaled, c.reacquire_scale)
 
     def step(self, frame: FrameData) -> FrameResult:
         c, m, space = self.settings.condensation, self.settings.measurement, self.space
