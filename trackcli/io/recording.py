@@ -544,7 +544,6 @@ class Recording:
         self._bar_edges: dict[str, np.ndarray] = {}
         self._frame: tuple[int, float] | None = None
         self._batch: dict[tuple[str, str, tuple[str, ...]], list[tuple[int, float, tuple]]] | None = None
-        self._held: dict[tuple[str, str, tuple[str, ...]], int] = {}  # bytes of each entity's held rows
 
     # -- lifecycle ---------------------------------------------------------
 
@@ -687,13 +686,12 @@ class Recording:
         """
         if last or (min_bytes <= 0 and max_rows <= 0):
             batch, self._batch = self._batch, (None if last else {})
-            self._held = {}
         else:
             batch = {}
             for key, rows in list((self._batch or {}).items()):
-                if (min_bytes > 0 and self._held.get(key, 0) >= min_bytes) or (max_rows > 0 and len(rows) >= max_rows):
+                if ((max_rows > 0 and len(rows) >= max_rows)
+                        or (min_bytes > 0 and sum(_nbytes(row[2]) for row in rows) >= min_bytes)):
                     batch[key] = self._batch.pop(key)
-                    self._held.pop(key, None)
         if not batch:
             return
         import rerun as rr
@@ -738,10 +736,8 @@ class Recording:
             self.stream.log(entity, getattr(rr, kind).from_fields(**components))
             return
         names = tuple(k for k, v in components.items() if v is not None)
-        key = (entity, kind, names)
-        values = tuple(components[k] for k in names)
-        self._batch.setdefault(key, []).append((self._frame[0], self._frame[1], values))
-        self._held[key] = self._held.get(key, 0) + sum(_nbytes(v) for v in values)
+        self._batch.setdefault((entity, kind, names), []).append(
+            (self._frame[0], self._frame[1], tuple(components[k] for k in names)))
 
     # -- frames ------------------------------------------------------------
 

@@ -572,12 +572,13 @@ def reacquisition_proposal(centres: np.ndarray, strengths: np.ndarray, origin: n
             idx = rng.choice(n, size=k, replace=False)
             comp = rng.choice(means.shape[0], size=k, p=w)
             out[idx, :2] = means[comp] + sd * rng.standard_normal((k, 2))
+            # a sample found this way starts at rest: no velocity from where its parent was
             if scale is not None:
                 target = rng.uniform(-span, span, k)
                 out[idx] = scale.rescale(out[idx], np.exp(target - log_s[idx]))
                 out_prev[idx] = out[idx]
-            # a sample found this way starts at rest: no velocity from where its parent was
-            out_prev[idx, :2] = out[idx, :2]
+            else:
+                out_prev[idx, :2] = out[idx, :2]
         t = out[:, :2]
         log_f = _log_gauss2(t - mu, cov)
         diff = t[:, None, :] - means[None, :, :]
@@ -586,7 +587,9 @@ def reacquisition_proposal(centres: np.ndarray, strengths: np.ndarray, origin: n
         log_g = top + np.log(np.exp(comp_log - top[:, None]).sum(axis=1))
         log_u_all = log_u
         if scale is not None:
-            ls = scale.log_scale(out)
+            ls = log_s.copy()  # the redrawn samples' scales as the space gives them back
+            if k > 0:
+                ls[idx] = scale.log_scale(out[idx])
             log_f = log_f - 0.5 * (ls - s_mu) ** 2 / s_var - 0.5 * math.log(2 * math.pi * s_var)
             log_us = np.where(np.abs(ls) <= span * (1 + 1e-9), -math.log(2 * span), -np.inf)
             log_g = log_g + log_us

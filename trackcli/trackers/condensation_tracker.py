@@ -171,6 +171,7 @@ class CondensationTracker(Tracker):
         self.edges: np.ndarray | None = None
         self.judge: Presence | None = None
         self.jumps = None
+        self.scale_search: observe.ScaleSearch | None = None
         self.centre = space.origin + self.X0[:2]
         self.lost_run = 0  # frames lost in a row
         self.k = 0
@@ -188,6 +189,7 @@ class CondensationTracker(Tracker):
                                     self.settings.measurement, c)
         self.observation.start(frame.image, frame.features, space, self.sampler, self.X0, presence=self.judge)
         self.jumps = translation_jumps(c.jump_fraction, c.jump_size * self.judge.app.size, c.jump_brake)
+        self.scale_search = self._scale_search()
 
     def _proposal(self, ev: Any, frame: FrameData):
         """The motion prior's jumps, and after ``reacquire_after`` lost frames the colour proposal."""
@@ -197,7 +199,7 @@ class CondensationTracker(Tracker):
         peaks, strengths = observe.colour_peaks(ev.cmap, self.judge.app.size)
         reacquire = observe.reacquisition_proposal(
             peaks, strengths, self.space.origin, self.judge.app.size, (frame.image.shape[1], frame.image.shape[0]),
-            fraction=c.reacquire_fraction, scale=self._scale_search())
+            fraction=c.reacquire_fraction, scale=self.scale_search)
         return self.jumps if reacquire is None else _chain(self.jumps, reacquire)
 
     def _scale_search(self) -> observe.ScaleSearch | None:
