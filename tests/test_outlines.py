@@ -255,3 +255,20 @@ def test_track_json_has_kind_and_rounded_floats(tmp_path, ellipse_clip, caplog):
     for text in ("settings: the defaults, options condensation.particles=40, seed=3", "initial shape X0",
                  "seed 3; samples", "frames decoded"):
         assert text in caplog.text, text
+
+
+def test_csv_cells_of_whole_arrays_match_the_one_value_rule():
+    """The array formatter writes every cell exactly as the per-value rule does: trailing zeros
+    dropped, NaN empty, infinities spelled out, values below 1e-3 in significant digits."""
+    from trackcli.io.tracks import _fmt, _fmt_all
+
+    rng = np.random.default_rng(7)
+    special = np.array([0.0, -0.0, np.nan, np.inf, -np.inf, 1e-3, -1e-3, 9.99e-4, -9.99e-4, 1e-9, 5e-4,
+                        1.0005, 2.5, -2.5, 0.9995, -0.9995, 1e300, 123456789.125, 100.0, -100.0])
+    for digits in (3, 4, 6, 8):
+        for _ in range(200):
+            v = np.concatenate([rng.choice(special, 5), rng.normal(0, 10 ** rng.uniform(-5, 4), 20),
+                                np.round(rng.normal(0, 100, 5), rng.integers(0, 4))])
+            assert _fmt_all(v, digits) == [_fmt(float(x), digits) for x in v]
+    assert _fmt_all(np.zeros(0), 3) == []
+    assert _fmt_all(np.array([[1.5, 2.0], [np.nan, 1e-4]]), 3) == ["1.5", "2", "", "0.0001"]
