@@ -21,6 +21,9 @@ The dev set:
 - every folder of ``--footage`` (default ``../shared/footage`` beside the repository, when
   present) holding ``img/`` frames and ``groundtruth_rect.txt``.
 
+With ``--grey`` every clip is replaced by a grey copy of it (one-channel JPEG frames, as many
+public benchmark sequences are), cached in ``--cache``.
+
 With ``--peers`` the same clips are tracked by OpenCV's CSRT, KCF and MIL from the same box
 (CSRT and KCF need ``opencv-contrib-python-headless``; MIL is in the plain wheel).  Peer
 results do not depend on trackcli and are cached.
@@ -28,7 +31,7 @@ results do not depend on trackcli and are cached.
 Usage::
 
     python bench/quality.py [--seeds 1,2,3] [--footage DIR] [--peers] [--only NAME ...]
-        [--json FILE] [-- EXTRA TRACK OPTIONS]
+        [--json FILE] [--grey] [-- EXTRA TRACK OPTIONS]
 
 Everything after ``--`` is passed to ``trackcli track`` (e.g. ``-- --particles 1000``).
 ``--runs K`` tracks every clip with seeds 0..K-1 and averages the scores: one run of a particle
@@ -107,6 +110,41 @@ def footage_clips(footage: Path) -> list[Clip]:
         x, y, w, h = (float(v) for v in gt.box[0])
         clips.append(Clip(folder.name, "real", folder, truth, (x, y, w, h)))
     return clips
+
+
+def _video_frames(path: Path):
+    import cv2
+
+    cap = cv2.VideoCapture(str(path))
+    try:
+        while True:
+            ok, frame = cap.read()
+            if not ok:
+                return
+            yield frame
+    finally:
+        cap.release()
+
+
+def grey_copy(clip: Clip, cache: Path) -> Clip:
+    """The clip with its frames in grey (one-channel JPEGs in an image folder, as grey benchmark
+    sequences ship), cached under ``cache/grey``; same truth and box."""
+    import cv2
+
+    folder = cache / "grey" / clip.name.replace("@", "-")
+    done = folder / ".complete"
+    if not done.is_file():
+        (folder / "img").mkdir(parents=True, exist_ok=True)
+        if clip.path.is_dir():
+            sources = sorted(p for p in (clip.path / "img").iterdir() if p.suffix.lower() in (".jpg", ".jpeg", ".png"))
+            frames = (cv2.imread(str(p)) for p in sources)
+        else:
+            frames = _video_frames(clip.path)
+        for i, frame in enumerate(frames):
+            cv2.imwrite(str(folder / "img" / f"{i:05d}.jpg"), cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY),
+                        [cv2.IMWRITE_JPEG_QUALITY, 95])
+        done.touch()
+    return Clip(f"{clip.name}-grey", clip.kind, folder, clip.truth, clip.box, clip.object_id)
 
 
 def score(csv: Path, clip: Clip) -> dict:
@@ -281,6 +319,8 @@ def main() -> None:
     ap.add_argument("--only", nargs="*", help="clip names (prefix match)")
     ap.add_argument("--json", type=Path, help="write all results here")
     ap.add_argument("--keep", type=Path, help="keep templates and tracks in this folder")
+    ap.add_argument("--grey", action="store_true",
+                    help="track grey copies of the clips instead (as monochrome benchmark sequences are)")
     ap.add_argument("--runs", type=int, default=1,
                     help="track every clip with --seed 0..RUNS-1 and average the scores (frame counts are summed)")
     args = ap.parse_args(argv)
@@ -290,6 +330,8 @@ def main() -> None:
     clips = synthetic_clips(seeds, args.cache) + footage_clips(args.footage)
     if args.only:
         clips = [c for c in clips if any(c.name.startswith(o) for o in args.only)]
+    if args.grey:
+        clips = [grey_copy(c, args.cache) for c in clips]
     peers = peer_results(clips, args.cache) if args.peers else {}
     work = args.keep or Path(tempfile.mkdtemp(prefix="quality-"))
     work.mkdir(parents=True, exist_ok=True)

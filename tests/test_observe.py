@@ -413,6 +413,51 @@ def test_colour_map_is_the_lookup_of_the_hsv_bins():
         np.testing.assert_array_equal(got, want)
     grey = (rng.random((12, 9)) * 256).astype(np.uint8)  # a grey frame is taken as BGR with equal channels
     np.testing.assert_array_equal(app.colour_map(grey), cv2.LUT(observe.hsv_bins(grey), lut.reshape(1, -1)))
+    grey_app = dataclasses.replace(app, grey=True)
+    frame = (rng.random((40, 30, 3)) * 256).astype(np.uint8)
+    np.testing.assert_array_equal(grey_app.colour_map(frame), cv2.LUT(observe.hsv_bins(frame, grey=True),
+                                                                      lut.reshape(1, -1)))
+
+
+def test_grey_frames_are_recognised():
+    rng = np.random.default_rng(11)
+    g = (rng.random((60, 80)) * 256).astype(np.uint8)
+    assert observe.is_grey(g)
+    assert observe.is_grey(cv2.merge([g, g, g]))
+    # a monochrome video decoded to BGR: chroma noise of a few grey levels
+    noisy = np.clip(cv2.merge([g, g, g]).astype(int) + rng.integers(-3, 4, (60, 80, 3)), 0, 255).astype(np.uint8)
+    assert observe.is_grey(noisy)
+    colour = cv2.merge([g, g, g])
+    colour[:20, :20] = (40, 90, 200)  # one coloured patch of 8 % of the frame
+    assert not observe.is_grey(colour)
+
+
+def test_grey_footage_gets_an_intensity_model_that_tells_close_grey_levels_apart():
+    """On a grey frame the HSV bins keep only four brightness levels; the grey-level model
+    separates an object at grey 150 from a background at 175 (the same HSV bin) and at 60."""
+    h, w = 160, 200
+    frame = np.full((h, w), 60, np.uint8)
+    frame[:, ::20] = 175  # background stripes, a little lighter than the object
+    frame[:, 1::20] = 175
+    frame[:, 2::20] = 175
+    cv2.circle(frame, (100, 80), 30, 150, -1)
+    img = cv2.merge([frame, frame, frame])
+    t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    poly = np.column_stack([100 + 30 * np.cos(t), 80 + 30 * np.sin(t)])
+    nrm = np.column_stack([np.cos(t), np.sin(t)])
+    fimg = measure.feature_image(img)
+    app = observe.learn_appearance(img, fimg, poly[::4], nrm[::4], poly, h=15.0, sigma=1.5, threshold=8.0)
+    assert app.grey
+    cmap = app.colour_map(img)
+    assert cmap[80, 100] > 1.0  # the object's grey level is object-like
+    assert cmap[80, 2] < -1.0 and cmap[80, 5] < -1.0  # both background levels are not
+    # the same frame with a touch of colour in a corner is judged as colour: the old HSV model,
+    # whose value bins put grey 150 and 175 together
+    img_c = img.copy()
+    img_c[:30, :30] = (0, 0, 255)
+    app_c = observe.learn_appearance(img_c, fimg, poly[::4], nrm[::4], poly, h=15.0, sigma=1.5, threshold=8.0)
+    assert not app_c.grey
+    assert app_c.colour_map(img_c)[80, 2] == pytest.approx(app_c.colour_map(img_c)[80, 100])
 
 
 def test_visible_share_counts_the_points_inside_the_frame():

@@ -81,6 +81,12 @@ __all__ = ["Appearance", "FrameEvidence", "colour_peaks", "confidence", "evidenc
 
 #: HSV histogram bins (hue, saturation, value).
 HIST_BINS = (8, 8, 4)
+#: Grey-level bins of the intensity histogram that replaces the HSV one on grey footage.
+GREY_BINS = 32
+#: A frame is grey (a monochrome clip, e.g. a grey JPEG sequence read as BGR) when fewer than
+#: :data:`GREY_SHARE` of its pixels have channels more than :data:`GREY_SPREAD` grey levels apart.
+GREY_SPREAD = 8
+GREY_SHARE = 0.01
 #: Clip of the colour log-ratio.
 COLOUR_CLIP = 3.0
 #: Smallest clutter density used, features per pixel (a clean background has almost none).
@@ -105,6 +111,10 @@ class Appearance:
         The object's size, the square root of the template's area, px.
     colour_offsets : ndarray of shape (K,), float32
         Positive offsets (px) of the colour samples along each normal.
+    grey : bool
+        The template's frame is grey: the bins are :data:`GREY_BINS` grey levels (the value
+        channel) instead of the HSV bins of :data:`HIST_BINS`, whose hue and saturation carry
+        nothing there.
     """
 
     polarity: np.ndarray
@@ -112,6 +122,7 @@ class Appearance:
     lut: np.ndarray
     size: float
     colour_offsets: np.ndarray
+    grey: bool = False
 
     def colour_map(self, frame_bgr: np.ndarray) -> np.ndarray:
         """The colour log-ratio ``L`` of every pixel of a frame: float32 (H, W) in [-3, 3].
@@ -121,7 +132,8 @@ class Appearance:
         """
         hsv = cv2.cvtColor(_bgr(frame_bgr), cv2.COLOR_BGR2HSV)
         out = np.empty(hsv.shape[:2], np.float32)
-        colour_lookup(hsv, _BIN_SHARES, np.ascontiguousarray(self.lut, dtype=np.float32).reshape(-1), out)
+        shares = _GREY_SHARES if self.grey else _BIN_SHARES
+        colour_lookup(hsv, shares, np.ascontiguousarray(self.lut, dtype=np.float32).reshape(-1), out)
         return out
 
 
@@ -146,12 +158,28 @@ _BIN_TABLE[0, :, 1] = ((np.arange(256) * HIST_BINS[1]) // 256) * HIST_BINS[2]
 _BIN_TABLE[0, :, 2] = (np.arange(256) * HIST_BINS[2]) // 256
 _SUM_CHANNELS = np.ones((1, 3), np.float32)
 _BIN_SHARES = np.ascontiguousarray(_BIN_TABLE[0])  # (256, 3): the same table for the compiled look-up
+# On grey frames only the value channel (the grey level) counts, in GREY_BINS bins.
+_GREY_TABLE = np.zeros((1, 256, 3), np.uint8)
+_GREY_TABLE[0, :, 2] = (np.arange(256) * GREY_BINS) // 256
+_GREY_SHARES = np.ascontiguousarray(_GREY_TABLE[0])
 
 
-def hsv_bins(frame_bgr: np.ndarray) -> np.ndarray:
-    """Flat HSV histogram bin of every pixel: uint8 (H, W) in ``[0, prod(HIST_BINS))``."""
+def is_grey(frame_bgr: np.ndarray) -> bool:
+    """Whether a frame carries no colour: fewer than :data:`GREY_SHARE` of its pixels have
+    channels more than :data:`GREY_SPREAD` grey levels apart (a 2-D frame is grey)."""
+    f = np.asarray(frame_bgr)
+    if f.ndim == 2:
+        return True
+    img = _bgr(f)
+    spread = cv2.subtract(img.max(axis=2), img.min(axis=2))
+    return float(np.count_nonzero(spread > GREY_SPREAD)) < GREY_SHARE * spread.size
+
+
+def hsv_bins(frame_bgr: np.ndarray, *, grey: bool = False) -> np.ndarray:
+    """Flat HSV histogram bin of every pixel: uint8 (H, W) in ``[0, prod(HIST_BINS))``; with
+    ``grey``, the grey-level bin in ``[0, GREY_BINS)``."""
     hsv = cv2.cvtColor(_bgr(frame_bgr), cv2.COLOR_BGR2HSV)
-    return cv2.transform(cv2.LUT(hsv, _BIN_TABLE), _SUM_CHANNELS)
+    return cv2.transform(cv2.LUT(hsv, _GREY_TABLE if grey else _BIN_TABLE), _SUM_CHANNELS)
 
 
 def _bgr(frame: np.ndarray) -> np.ndarray:
@@ -185,11 +213,12 @@ def feature_density(fimg: np.ndarray, centre: np.ndarray, size: float, threshold
     return max(count / max(length, 1), MIN_DENSITY)
 
 
-def _colour_model(frame_bgr: np.ndarray, polygon: np.ndarray, size: float) -> np.ndarray:
-    """Colour log-ratio per HSV bin: the pixels inside ``polygon`` against the background."""
+def _colour_model(frame_bgr: np.ndarray, polygon: np.ndarray, size: float, *, grey: bool = False) -> np.ndarray:
+    """Colour log-ratio per HSV bin (per grey-level bin with ``grey``): the pixels inside
+    ``polygon`` against the background."""
     img = _bgr(frame_bgr)
     h, w = img.shape[:2]
-    bins = hsv_bins(img).reshape(-1)
+    bins = hsv_bins(img, grey=grey).reshape(-1)
     inside = np.zeros((h, w), np.uint8)
     cv2.fillPoly(inside, [np.round(polygon).astype(np.int32)], 1)
     gap = max(2, int(round(0.05 * size)))
@@ -204,7 +233,7 @@ def _colour_model(frame_bgr: np.ndarray, polygon: np.ndarray, size: float) -> np
     n = int(np.prod(HIST_BINS))
     fg, bg_ring, bg_all = (np.bincount(bins[m.reshape(-1) > 0], minlength=n).astype(np.float64)
                            for m in (core, ring, rest))
-    nbins = float(n)
+    nbins = float(GREY_BINS if grey else n)
     # add-a-half smoothing (a Dirichlet prior) keeps unseen colours neutral rather than infinite
     pf = (fg + 0.5) / (fg.sum() + 0.5 * nbins)
     # background: half the ring around the object (what it must be told from where it is),
@@ -251,8 +280,10 @@ def learn_appearance(frame_bgr: np.ndarray, fimg: np.ndarray, points: np.ndarray
     lam = feature_density(img, centre, size, threshold)
     lambda_in = max((inner + lam * 2 * m) / (length + 2 * m), MIN_DENSITY)
     offsets = np.unique(np.maximum(1.5, np.round(np.array(_COLOUR_FRACTIONS) * size))).astype(np.float32)
-    return Appearance(polarity=polarity, lambda_in=float(lambda_in), lut=_colour_model(frame_bgr, polygon, size),
-                      size=size, colour_offsets=offsets)
+    grey = is_grey(frame_bgr)
+    return Appearance(polarity=polarity, lambda_in=float(lambda_in),
+                      lut=_colour_model(frame_bgr, polygon, size, grey=grey), size=size, colour_offsets=offsets,
+                      grey=grey)
 
 
 def evidence(app: Appearance, frame_bgr: np.ndarray, fimg: np.ndarray, centre: np.ndarray, threshold: float) -> FrameEvidence:
