@@ -622,6 +622,22 @@ def test_the_parent_removes_what_unfinished_jobs_left(tmp_path):
 # 6. accepted nonsense (outlines off the frame and 1x1 frames are in the sweep)
 
 
+def test_a_template_that_does_not_outline_anything_is_warned_about(tmp_path, drawn, caplog):
+    """A template on plain background scores no better than clutter on its own frame: the run
+    goes on, but says that its lost verdict cannot be trusted."""
+    clip, template = drawn
+    with caplog.at_level(logging.WARNING, logger="trackcli"):
+        invoke(["track", "--template", template, clip, "-o", tmp_path / "out", "--particles", "30", "--no-rrd"], 0)
+    assert "no more object-like than clutter" not in caplog.text
+    blank = tmp_path / "blank.yaml"  # the same size, on the empty top-right of the frame
+    invoke(["draw", clip, "--ellipse", "130,30,14,18", "-o", blank], 0)
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="trackcli"):
+        invoke(["track", "--template", blank, clip, "-o", tmp_path / "out", "--particles", "30", "--no-rrd"], 0)
+    assert "clip: the template scores" in caplog.text and "the lost verdict and the confidence will be " \
+        "unreliable" in caplog.text
+
+
 def test_a_template_from_another_clip_is_warned_about(tmp_path, drawn, caplog):
     clip, template = drawn
     other = shutil.copy(clip, tmp_path / "other.avi")

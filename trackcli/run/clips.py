@@ -663,6 +663,7 @@ def track_clip(
 
             extra = {"template": load_template(template), "template_path": str(template)}
         the_tracker = tracker_cls(space, dynamics, settings, rng, X0=X0, **extra)
+        the_tracker.label = name
 
         def make(frames: Iterable[Any]) -> Iterator[Any]:
             return run_tracker(the_tracker, frames)

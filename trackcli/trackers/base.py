@@ -132,6 +132,8 @@ class Tracker(ABC):
     name: ClassVar[str] = ""
     #: names of the values of :attr:`FrameResult.extra`, in CSV column order
     extra_columns: list[str] = []
+    #: what log messages call the clip (set by whoever runs the tracker; empty: nothing)
+    label: str = ""
 
     def __init__(self, space: ShapeSpace, dynamics: Any, settings: Settings, rng: np.random.Generator | None = None,
                  *, X0: np.ndarray | None = None):

@@ -9,6 +9,7 @@ re-acquisition by importance sampling after loss
 
 from __future__ import annotations
 
+import logging
 from typing import Any, Iterable, Iterator
 
 import numpy as np
@@ -24,6 +25,8 @@ from trackcli.shapes.outline import contour_summary, measurement_sampler
 from trackcli.shapes.shape_space import ShapeSpace
 from trackcli.trackers import condensation as cond
 from trackcli.trackers.base import FrameData, FrameResult, Tracker, run_tracker
+
+log = logging.getLogger(__name__)
 
 
 BRAKE_SPREAD = 0.3  # isotropic part of a braking jump, as a fraction of the jump size (translation_jumps)
@@ -188,6 +191,14 @@ class CondensationTracker(Tracker):
         self.judge = Presence.learn(frame.image, frame.features, space, self.sampler, self.X0,
                                     self.settings.measurement, c)
         self.observation.start(frame.image, frame.features, space, self.sampler, self.X0, presence=self.judge)
+        where = f"{self.label}: " if self.label else ""
+        if self.judge.app.grey:
+            log.info("%sframe %d has no colour: the colour model is a histogram of %d grey levels", where,
+                     frame.index, observe.GREY_BINS)
+        if not self.judge.reference > 0:
+            log.warning("%sthe template scores %.2f per normal on frame %d, no more object-like than clutter: "
+                        "the lost verdict and the confidence will be unreliable (a tighter outline, or the "
+                        "object on another frame, may do better)", where, self.judge.reference, frame.index)
         self.jumps = translation_jumps(c.jump_fraction, c.jump_size * self.judge.app.size, c.jump_brake)
         self.scale_search = self._scale_search()
 
