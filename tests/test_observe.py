@@ -465,6 +465,52 @@ def test_visible_share_counts_the_points_inside_the_frame():
     assert observe.visible_share(pts, (5, 10, 3)) == pytest.approx(0.4)
 
 
+def test_visible_share_inside_a_picture_between_bars():
+    pts = np.array([[5.0, 1.0], [5.0, 3.0], [5.0, 6.0], [5.0, 8.0]])
+    assert observe.visible_share(pts, (10, 10), (0, 2, 10, 8)) == pytest.approx(0.5)
+
+
+def _letterboxed(rng, h=120, w=160, bar=20):
+    """A textured picture (JPEG-like noise in the bars) between black bars of ``bar`` rows."""
+    img = np.clip(rng.normal(120, 30, (h, w)), 0, 255).astype(np.uint8)
+    img[:bar] = rng.integers(0, 6, (bar, w))
+    img[h - bar:] = rng.integers(0, 6, (bar, w))
+    return cv2.merge([img, img, img])
+
+
+def test_letterbox_and_pillarbox_bars_are_found():
+    rng = np.random.default_rng(3)
+    assert observe.picture_area(_letterboxed(rng)) == (0, 20, 160, 100)
+    pillar = np.ascontiguousarray(_letterboxed(rng, h=160, w=120).transpose(1, 0, 2))
+    assert observe.picture_area(pillar) == (20, 0, 140, 120)
+    assert observe.picture_area(_letterboxed(rng, bar=2)) is None  # two dark rows are not a bar
+    assert observe.picture_area(np.full((90, 120, 3), 10, np.uint8)) is None  # a dark scene is not all bar
+    plain = np.clip(rng.normal(120, 30, (90, 120, 3)), 0, 255).astype(np.uint8)
+    assert observe.picture_area(plain) is None
+
+
+def test_a_letterbox_edge_is_no_evidence_of_an_object():
+    """A curve lying along the edge of a letterbox bar finds strong edges of one polarity all
+    along its top; with the bars read as the frame's edge it finds none there."""
+    rng = np.random.default_rng(8)
+    frame = _letterboxed(rng)
+    frame[20:100] = 140  # a flat picture: only the bar's edges are edges
+    area = observe.picture_area(frame)
+    fimg = measure.feature_image(frame)
+    clean = observe.without_bars(fimg, area)
+    np.testing.assert_array_equal(clean[40:80], fimg[40:80])  # the picture itself is unchanged
+    assert np.abs(np.diff(clean[:40], axis=0)).max() < 0.1  # no step across the bar's edge (8 is a feature)
+    t = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    pts = np.column_stack([80 + 30 * np.cos(t), 20 + 12 * np.sin(t)]).astype(np.float32)
+    nrm = np.column_stack([np.cos(t) * 12, np.sin(t) * 30])
+    nrm = (nrm / np.linalg.norm(nrm, axis=1, keepdims=True)).astype(np.float32)
+    counted = [observe.normals_with_features(f, pts, nrm, h=10, threshold=8.0, sign=0) for f in (fimg, clean)]
+    assert counted[0] >= 8 and counted[1] == 0
+    cmap = np.ones(fimg.shape, np.float32)
+    observe.clear_bars(cmap, area)
+    assert cmap[:20].max() == 0 and cmap[100:].max() == 0 and cmap[20:100].min() == 1
+
+
 def test_confidence_falls_to_zero_as_the_curve_leaves_the_frame():
     full = observe.confidence(2.0, 0.0, reference=2.0)
     assert observe.confidence(2.0, 0.0, reference=2.0, visible=observe.VISIBLE_FULL) == full

@@ -87,6 +87,11 @@ GREY_BINS = 32
 #: :data:`GREY_SHARE` of its pixels have channels more than :data:`GREY_SPREAD` grey levels apart.
 GREY_SPREAD = 8
 GREY_SHARE = 0.01
+#: Letterbox and pillarbox bars: at least :data:`BAR_MIN` rows (columns) at the frame's edge,
+#: 90 % of whose pixels are no brighter than :data:`BAR_LEVEL` grey levels, with a picture of at
+#: least half the frame's height (width) between them.
+BAR_LEVEL = 24
+BAR_MIN = 4
 #: Clip of the colour log-ratio.
 COLOUR_CLIP = 3.0
 #: Smallest clutter density used, features per pixel (a clean background has almost none).
@@ -147,6 +152,9 @@ class FrameEvidence:
     """Colour log-ratio of every pixel (:meth:`Appearance.colour_map`)."""
     density: float
     """Clutter density ``λ`` around the object, features (of any sign) per pixel."""
+    area: tuple[int, int, int, int] | None = None
+    """The picture ``(x0, y0, x1, y1)`` inside letterbox or pillarbox bars (:func:`picture_area`);
+    None: the whole frame."""
 
 
 # One table for the three 8-bit HSV channels (hue 0-179): each channel's share of the flat bin
@@ -452,11 +460,70 @@ VISIBLE_FULL = 0.5
 VISIBLE_NONE = 0.2
 
 
-def visible_share(points: np.ndarray, frame_shape: tuple[int, ...]) -> float:
-    """The share of a curve's points ``(M, 2)`` that lie inside a frame of ``frame_shape`` (h, w, ...)."""
+def visible_share(points: np.ndarray, frame_shape: tuple[int, ...],
+                  area: tuple[int, int, int, int] | None = None) -> float:
+    """The share of a curve's points ``(M, 2)`` that lie inside a frame of ``frame_shape`` (h, w, ...),
+    or inside its picture ``area = (x0, y0, x1, y1)`` when it has bars."""
     h, w = frame_shape[:2]
+    x0, y0, x1, y1 = area if area is not None else (0, 0, w, h)
     x, y = points[:, 0], points[:, 1]
-    return float(np.mean((x >= 0) & (x <= w - 1) & (y >= 0) & (y <= h - 1)))
+    return float(np.mean((x >= x0) & (x <= x1 - 1) & (y >= y0) & (y <= y1 - 1)))
+
+
+def picture_area(frame: np.ndarray) -> tuple[int, int, int, int] | None:
+    """The picture ``(x0, y0, x1, y1)`` between the black bars of a letterboxed or pillarboxed
+    frame (see :data:`BAR_LEVEL`); None when the frame has no bars."""
+    f = np.asarray(frame)
+    grey = f if f.ndim == 2 else cv2.cvtColor(_bgr(f), cv2.COLOR_BGR2GRAY)
+    h, w = grey.shape[:2]
+
+    def bar(lines: np.ndarray) -> int:
+        dark = np.percentile(lines, 90, axis=1) <= BAR_LEVEL
+        n = int(np.argmin(dark)) if not dark.all() else len(dark)
+        return n if n >= BAR_MIN else 0
+
+    top, bottom = bar(grey), bar(grey[::-1])
+    left, right = bar(grey.T), bar(grey.T[::-1])
+    if h - top - bottom < h / 2:
+        top = bottom = 0
+    if w - left - right < w / 2:
+        left = right = 0
+    if not (top or bottom or left or right):
+        return None
+    return left, top, w - right, h - bottom
+
+
+#: rows (columns) of the picture next to a bar that the feature image takes the bar's place
+#: with: the smoothing spreads the bar's edge over a few pixels of the picture
+BAR_MARGIN = 6
+
+
+def without_bars(fimg: np.ndarray, area: tuple[int, int, int, int]) -> np.ndarray:
+    """A copy of a feature image whose bars (outside the picture ``area``) read as the frame's
+    edge does: the picture's border, :data:`BAR_MARGIN` pixels in, repeated over them, so the
+    bar's own edge is no feature."""
+    x0, y0, x1, y1 = area
+    h, w = fimg.shape
+    out = np.array(fimg, dtype=np.float32, copy=True)
+    k = BAR_MARGIN
+    if y0 > 0:
+        out[:y0 + k] = out[min(y0 + k, h - 1)]
+    if y1 < h:
+        out[y1 - k:] = out[max(y1 - k - 1, 0)]
+    if x0 > 0:
+        out[:, :x0 + k] = out[:, min(x0 + k, w - 1)][:, None]
+    if x1 < w:
+        out[:, x1 - k:] = out[:, max(x1 - k - 1, 0)][:, None]
+    return out
+
+
+def clear_bars(cmap: np.ndarray, area: tuple[int, int, int, int]) -> None:
+    """Zero a colour map outside the picture ``area`` (no evidence, as beyond the frame's edge); in place."""
+    x0, y0, x1, y1 = area
+    cmap[:y0] = 0.0
+    cmap[y1:] = 0.0
+    cmap[:, :x0] = 0.0
+    cmap[:, x1:] = 0.0
 
 
 def confidence(presence_score: float, spread: float, *, reference: float, centre: float = 0.3,

@@ -74,6 +74,6 @@ class Presence:
         total = s * pts.shape[0]
         if posterior_score is not None and math.isfinite(posterior_score):
             s = max(s, posterior_score)
-        visible = observe.visible_share(pts, ev.fimg.shape)
+        visible = observe.visible_share(pts, ev.fimg.shape, ev.area)
         conf = observe.confidence(s, spread, reference=self.reference, centre=self.centre, visible=visible)
         return conf, e * pts.shape[0], total
