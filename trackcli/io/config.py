@@ -174,7 +174,7 @@ class CondensationSettings:
     jump_fraction: float = _f(0.1, "float", "share of the samples given a jump: an impulse that moves the predicted position and changes the velocity by the same amount (the motion prior is a mixture of smooth motion and abrupt moves: kicks, turns, camera shake)", lo=0, hi=1)
     jump_size: float = _f(0.3, "float", "RMS size of such a jump, in object sizes (square root of the template's area)", lo=0, hi=10)
     jump_brake: float = _f(0.02, "float", "share of the samples given a braking jump (besides the jumps of jump_fraction): the velocity v changes by -u*v, u uniform in [0, 2] (slowing, stopping, turning back: a bounce), plus 0.3 of jump_size at random", lo=0, hi=1)
-    search: float = _f(15.0, "float", "fixed search half-width h along each normal, px (truncated: also the penalty h^2)", lo=1, hi=200)
+    search: float = _f(20.0, "float", "fixed search half-width h along each normal, px (truncated: also the penalty h^2)", lo=1, hi=200)
     sigma: float = _f(3.0, "float", "feature position noise sigma, px", lo=0, lo_open=True)
     alpha: float = _f(0.02, "float", "clutter density alpha, features per px (clutter model only)", lo=0, lo_open=True)
     init: str = _f("template", "str", "initial sample set", choices=("template", "steady_state"))
