@@ -92,6 +92,9 @@ GREY_SHARE = 0.01
 #: least half the frame's height (width) between them.
 BAR_LEVEL = 24
 BAR_MIN = 4
+#: rows (columns) of the picture next to a bar whose border the feature image repeats over the
+#: bar: the smoothing spreads the bar's edge over a few pixels of the picture
+BAR_MARGIN = 6
 #: Clip of the colour log-ratio.
 COLOUR_CLIP = 3.0
 #: Smallest clutter density used, features per pixel (a clean background has almost none).
@@ -491,11 +494,6 @@ def picture_area(frame: np.ndarray) -> tuple[int, int, int, int] | None:
     if not (top or bottom or left or right):
         return None
     return left, top, w - right, h - bottom
-
-
-#: rows (columns) of the picture next to a bar that the feature image takes the bar's place
-#: with: the smoothing spreads the bar's edge over a few pixels of the picture
-BAR_MARGIN = 6
 
 
 def without_bars(fimg: np.ndarray, area: tuple[int, int, int, int]) -> np.ndarray:
