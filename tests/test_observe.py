@@ -430,6 +430,13 @@ def test_grey_frames_are_recognised():
     colour = cv2.merge([g, g, g])
     colour[:20, :20] = (40, 90, 200)  # one coloured patch of 8 % of the frame
     assert not observe.is_grey(colour)
+    small = cv2.merge([g, g, g])
+    small[30:35, 40:45] = (40, 90, 200)  # a small red object: 0.5 % of the frame
+    assert observe.is_grey(small)
+    region = np.zeros((60, 80), bool)
+    region[28:37, 38:47] = True
+    assert not observe.is_grey(small, region)  # ... keeps its colour when it is the object
+    assert observe.is_grey(cv2.merge([g, g, g]), region)
 
 
 def test_grey_footage_gets_an_intensity_model_that_tells_close_grey_levels_apart():

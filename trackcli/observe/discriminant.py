@@ -175,15 +175,23 @@ _GREY_TABLE[0, :, 2] = (np.arange(256) * GREY_BINS) // 256
 _GREY_SHARES = np.ascontiguousarray(_GREY_TABLE[0])
 
 
-def is_grey(frame_bgr: np.ndarray) -> bool:
+def is_grey(frame_bgr: np.ndarray, region: np.ndarray | None = None) -> bool:
     """Whether a frame carries no colour: fewer than :data:`GREY_SHARE` of its pixels have
-    channels more than :data:`GREY_SPREAD` grey levels apart (a 2-D frame is grey)."""
+    channels more than :data:`GREY_SPREAD` grey levels apart (a 2-D frame is grey), and, with
+    ``region`` (a boolean mask, e.g. the object), fewer than that share of the region's pixels
+    too: a small coloured object in a colourless scene keeps its colour."""
     f = np.asarray(frame_bgr)
     if f.ndim == 2:
         return True
     img = _bgr(f)
-    spread = cv2.subtract(img.max(axis=2), img.min(axis=2))
-    return float(np.count_nonzero(spread > GREY_SPREAD)) < GREY_SHARE * spread.size
+    coloured = cv2.subtract(img.max(axis=2), img.min(axis=2)) > GREY_SPREAD
+    if float(np.count_nonzero(coloured)) >= GREY_SHARE * coloured.size:
+        return False
+    if region is not None:
+        inside = np.asarray(region, dtype=bool)
+        if inside.any() and float(np.count_nonzero(coloured[inside])) >= GREY_SHARE * np.count_nonzero(inside):
+            return False
+    return True
 
 
 def hsv_bins(frame_bgr: np.ndarray, *, grey: bool = False) -> np.ndarray:
@@ -291,7 +299,9 @@ def learn_appearance(frame_bgr: np.ndarray, fimg: np.ndarray, points: np.ndarray
     lam = feature_density(img, centre, size, threshold)
     lambda_in = max((inner + lam * 2 * m) / (length + 2 * m), MIN_DENSITY)
     offsets = np.unique(np.maximum(1.5, np.round(np.array(_COLOUR_FRACTIONS) * size))).astype(np.float32)
-    grey = is_grey(frame_bgr)
+    inside = np.zeros(img.shape, np.uint8)
+    cv2.fillPoly(inside, [np.round(np.asarray(polygon, dtype=float)).astype(np.int32)], 1)
+    grey = is_grey(frame_bgr, inside > 0)
     return Appearance(polarity=polarity, lambda_in=float(lambda_in),
                       lut=_colour_model(frame_bgr, polygon, size, grey=grey), size=size, colour_offsets=offsets,
                       grey=grey)
