@@ -232,14 +232,11 @@ def feature_density(fimg: np.ndarray, centre: np.ndarray, size: float, threshold
     return max(count / max(length, 1), MIN_DENSITY)
 
 
-def _colour_model(frame_bgr: np.ndarray, polygon: np.ndarray, size: float, *, grey: bool = False) -> np.ndarray:
-    """Colour log-ratio per HSV bin (per grey-level bin with ``grey``): the pixels inside
-    ``polygon`` against the background."""
+def _colour_model(frame_bgr: np.ndarray, inside: np.ndarray, size: float, *, grey: bool = False) -> np.ndarray:
+    """Colour log-ratio per HSV bin (per grey-level bin with ``grey``): the pixels of the
+    object's mask ``inside`` (uint8 0/1) against the background."""
     img = _bgr(frame_bgr)
-    h, w = img.shape[:2]
     bins = hsv_bins(img, grey=grey).reshape(-1)
-    inside = np.zeros((h, w), np.uint8)
-    cv2.fillPoly(inside, [np.round(polygon).astype(np.int32)], 1)
     gap = max(2, int(round(0.05 * size)))
     ring_w = max(6, int(round(0.5 * size)))
     near = cv2.dilate(inside, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * gap + 1, 2 * gap + 1)))
@@ -303,7 +300,7 @@ def learn_appearance(frame_bgr: np.ndarray, fimg: np.ndarray, points: np.ndarray
     cv2.fillPoly(inside, [np.round(np.asarray(polygon, dtype=float)).astype(np.int32)], 1)
     grey = is_grey(frame_bgr, inside > 0)
     return Appearance(polarity=polarity, lambda_in=float(lambda_in),
-                      lut=_colour_model(frame_bgr, polygon, size, grey=grey), size=size, colour_offsets=offsets,
+                      lut=_colour_model(frame_bgr, inside, size, grey=grey), size=size, colour_offsets=offsets,
                       grey=grey)
 
 

@@ -26,7 +26,9 @@ class Presence:
 
     Learned from the template on the first frame; gives the discriminant log-likelihood of
     hypothesised curves (CONDENSATION's default) and, for both trackers, the per-frame
-    confidence and ``lost`` verdict.
+    confidence and ``lost`` verdict.  Letterbox or pillarbox bars found on the first frame
+    (``area``, :func:`~trackcli.observe.discriminant.picture_area`) count in every frame's
+    evidence as beyond the frame's edge.
     """
 
     app: observe.Appearance
@@ -37,23 +39,31 @@ class Presence:
     colour_weight: float
     centre: float
     reference: float = math.nan
+    area: tuple[int, int, int, int] | None = None
 
     @classmethod
     def learn(cls, image: np.ndarray, fimg: np.ndarray, space: ShapeSpace, sampler: CurveSampler, X0: np.ndarray,
               measurement: MeasurementSettings, settings: CondensationSettings) -> Presence:
         pts, nrm = space.points_normals(X0, sampler)
         poly, _, _ = contour_summary(space, X0)
-        app = observe.learn_appearance(image, fimg, pts, nrm, poly, h=settings.search, sigma=settings.sigma,
-                                       threshold=measurement.threshold)
+        area = observe.picture_area(image)
+        app = observe.learn_appearance(image, fimg if area is None else observe.without_bars(fimg, area), pts, nrm,
+                                       poly, h=settings.search, sigma=settings.sigma, threshold=measurement.threshold)
         judge = cls(app, settings.search, settings.sigma, measurement.threshold, settings.miss_probability,
-                    settings.colour_weight, measurement.presence_centre)
+                    settings.colour_weight, measurement.presence_centre, area=area)
         ev = judge.evidence(image, fimg, space.origin + X0[:2])
         reference, _, _ = observe.presence(app, ev, pts, nrm, h=judge.h, sigma=judge.sigma, threshold=judge.threshold,
                                            miss=judge.miss, colour_weight=judge.colour_weight)
         return dataclasses.replace(judge, reference=reference)
 
     def evidence(self, image: np.ndarray, fimg: np.ndarray, centre: np.ndarray) -> observe.FrameEvidence:
-        return observe.evidence(self.app, image, fimg, centre, self.threshold)
+        """The frame's evidence; with bars, its feature image without them (``ev.fimg``), its
+        colour map 0 on them, and ``ev.area`` the picture."""
+        if self.area is None:
+            return observe.evidence(self.app, image, fimg, centre, self.threshold)
+        ev = observe.evidence(self.app, image, observe.without_bars(fimg, self.area), centre, self.threshold)
+        observe.clear_bars(ev.cmap, self.area)
+        return dataclasses.replace(ev, area=self.area)
 
     def score(self, ev: observe.FrameEvidence, pts: np.ndarray, nrm: np.ndarray) -> np.ndarray:
         return observe.score(self.app, ev, pts, nrm, h=self.h, sigma=self.sigma, threshold=self.threshold,

@@ -9,7 +9,6 @@ re-acquisition by importance sampling after loss
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 from typing import Any, Iterable, Iterator
 
@@ -174,7 +173,6 @@ class CondensationTracker(Tracker):
         self.hist_range = hist_range
         self.edges: np.ndarray | None = None
         self.judge: Presence | None = None
-        self.area: tuple[int, int, int, int] | None = None  # the picture inside bars (first frame)
         self.jumps = None
         self.scale_search: observe.ScaleSearch | None = None
         self.centre = space.origin + self.X0[:2]
@@ -190,15 +188,14 @@ class CondensationTracker(Tracker):
             ox = float(space.origin[0])
             self.hist_range = (-ox, frame.image.shape[1] - ox)
         self.edges = np.linspace(self.hist_range[0], self.hist_range[1], c.histogram_bins + 1)
-        self.area = observe.picture_area(frame.image)
-        fimg = self._features(frame)
-        self.judge = Presence.learn(frame.image, fimg, space, self.sampler, self.X0, self.settings.measurement, c)
-        self.observation.start(frame.image, fimg, space, self.sampler, self.X0, presence=self.judge)
+        self.judge = Presence.learn(frame.image, frame.features, space, self.sampler, self.X0,
+                                    self.settings.measurement, c)
+        self.observation.start(frame.image, frame.features, space, self.sampler, self.X0, presence=self.judge)
         where = f"{self.label}: " if self.label else ""
-        if self.area is not None:
+        area = self.judge.area
+        if area is not None:
             log.info("%sletterbox or pillarbox bars: the picture is x %d-%d, y %d-%d; the bars count as "
-                     "beyond the frame's edge", where, self.area[0], self.area[2] - 1, self.area[1],
-                     self.area[3] - 1)
+                     "beyond the frame's edge", where, area[0], area[2] - 1, area[1], area[3] - 1)
         if self.judge.app.grey:
             log.info("%sframe %d has no colour: the colour model is a histogram of %d grey levels", where,
                      frame.index, observe.GREY_BINS)
@@ -208,13 +205,6 @@ class CondensationTracker(Tracker):
                         "object on another frame, may do better)", where, self.judge.reference, frame.index)
         self.jumps = translation_jumps(c.jump_fraction, c.jump_size * self.judge.app.size, c.jump_brake)
         self.scale_search = self._scale_search()
-
-    def _features(self, frame: FrameData) -> np.ndarray:
-        """The frame's feature image, with letterbox or pillarbox bars (found on the first
-        frame) reading as the frame's edge does."""
-        if self.area is None:
-            return frame.features
-        return observe.without_bars(frame.features, self.area)
 
     def _proposal(self, ev: Any, frame: FrameData):
         """The motion prior's jumps, and after ``reacquire_after`` lost frames the colour proposal."""
@@ -246,11 +236,8 @@ class CondensationTracker(Tracker):
         if self.judge is None:
             self._start(frame)
         judge = self.judge
-        fimg = self._features(frame)
-        ev = judge.evidence(frame.image, fimg, self.centre)
-        if self.area is not None:
-            observe.clear_bars(ev.cmap, self.area)
-            ev = dataclasses.replace(ev, area=self.area)
+        ev = judge.evidence(frame.image, frame.features, self.centre)
+        fimg = ev.fimg  # without letterbox bars
         self.observation.prepare(frame.image, fimg, ev)
 
         def loglik(X: np.ndarray) -> np.ndarray:
