@@ -22,7 +22,10 @@ The dev set:
   present) holding ``img/`` frames and ``groundtruth_rect.txt``.
 
 With ``--grey`` every clip is replaced by a grey copy of it (one-channel JPEG frames, as many
-public benchmark sequences are), cached in ``--cache``.
+public benchmark sequences are), with ``--scale F`` by a copy at F times its resolution, with
+``--every K`` by a copy of every K-th frame (K times faster motion); the options combine, and
+the copies are cached in ``--cache``.  They show how far the defaults hold on footage of the
+same kind but not the same make.
 
 With ``--peers`` the same clips are tracked by OpenCV's CSRT, KCF and MIL from the same box
 (CSRT and KCF need ``opencv-contrib-python-headless``; MIL is in the plain wheel).  Peer
@@ -31,7 +34,7 @@ results do not depend on trackcli and are cached.
 Usage::
 
     python bench/quality.py [--seeds 1,2,3] [--footage DIR] [--peers] [--only NAME ...]
-        [--json FILE] [--grey] [-- EXTRA TRACK OPTIONS]
+        [--json FILE] [--grey] [--scale F] [--every K] [--runs K] [-- EXTRA TRACK OPTIONS]
 
 Everything after ``--`` is passed to ``trackcli track`` (e.g. ``-- --particles 1000``).
 ``--runs K`` tracks every clip with seeds 0..K-1 and averages the scores: one run of a particle
@@ -126,13 +129,26 @@ def _video_frames(path: Path):
         cap.release()
 
 
-def grey_copy(clip: Clip, cache: Path) -> Clip:
-    """The clip with its frames in grey (one-channel JPEGs in an image folder, as grey benchmark
-    sequences ship), cached under ``cache/grey``; same truth and box."""
+def variant_copy(clip: Clip, cache: Path, *, grey: bool = False, scale: float = 1.0, every: int = 1) -> Clip:
+    """The clip changed as footage of the same kind may be, cached under ``cache/variants``:
+
+    - ``grey``: its frames in grey (one-channel JPEGs, as grey benchmark sequences ship);
+    - ``scale``: its frames resized by this factor (a lower or higher resolution), the truth
+      and the frame-0 box with them;
+    - ``every``: every ``every``-th frame only (the object moves that many times farther
+      between frames), the truth with them.
+
+    Frames go into an image folder (JPEG quality 95) and the truth into a trackcli truth CSV
+    beside it (centroids kept as centroids, boxes as boxes)."""
     import cv2
 
-    folder = cache / "grey" / clip.name.replace("@", "-")
+    if not grey and scale == 1.0 and every == 1:
+        return clip
+    tag = "-".join([*(["grey"] if grey else []), *([f"x{scale:g}"] if scale != 1.0 else []),
+                    *([f"every{every}"] if every != 1 else [])])
+    folder = cache / "variants" / tag / clip.name.replace("@", "-")
     done = folder / ".complete"
+    truth = load_truth(clip.truth, object_id=clip.object_id)
     if not done.is_file():
         (folder / "img").mkdir(parents=True, exist_ok=True)
         if clip.path.is_dir():
@@ -141,10 +157,29 @@ def grey_copy(clip: Clip, cache: Path) -> Clip:
         else:
             frames = _video_frames(clip.path)
         for i, frame in enumerate(frames):
-            cv2.imwrite(str(folder / "img" / f"{i:05d}.jpg"), cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY),
-                        [cv2.IMWRITE_JPEG_QUALITY, 95])
+            if i % every:
+                continue
+            if scale != 1.0:
+                size = (max(1, round(frame.shape[1] * scale)), max(1, round(frame.shape[0] * scale)))
+                frame = cv2.resize(frame, size, interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR)
+            if grey:
+                frame = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+            cv2.imwrite(str(folder / "img" / f"{i // every:05d}.jpg"), frame, [cv2.IMWRITE_JPEG_QUALITY, 95])
+        keep = truth.frame % every == 0
+        rows = zip(truth.frame[keep] // every, truth.centre[keep] * scale, truth.box[keep] * scale, truth.present[keep])
+        if truth.centre_kind == "centroid":  # a trackcli truth CSV: the centroid is scored
+            lines = ["frame,object,cx,cy,bbox_x,bbox_y,bbox_w,bbox_h,visible"]
+            lines += [f"{f},0,{c[0]:.4f},{c[1]:.4f},{b[0]:.4f},{b[1]:.4f},{b[2]:.4f},{b[3]:.4f},{int(v)}"
+                      for f, c, b, v in rows]
+        else:  # a benchmark box file, one line per frame from frame 0: the box centre is scored
+            lines = [",".join(f"{x:.3f}" for x in b) if v else "0,0,0,0" for _, _, b, v in rows]
+        (folder / TRUTH_NAME[truth.centre_kind]).write_text("\n".join(lines) + "\n")
         done.touch()
-    return Clip(f"{clip.name}-grey", clip.kind, folder, clip.truth, clip.box, clip.object_id)
+    box = tuple(v * scale for v in clip.box)
+    return Clip(f"{clip.name}-{tag}", clip.kind, folder, folder / TRUTH_NAME[truth.centre_kind], box)
+
+
+TRUTH_NAME = {"centroid": "truth.csv", "box": "groundtruth_rect.txt"}
 
 
 def score(csv: Path, clip: Clip) -> dict:
@@ -321,6 +356,10 @@ def main() -> None:
     ap.add_argument("--keep", type=Path, help="keep templates and tracks in this folder")
     ap.add_argument("--grey", action="store_true",
                     help="track grey copies of the clips instead (as monochrome benchmark sequences are)")
+    ap.add_argument("--scale", type=float, default=1.0,
+                    help="track copies of the clips resized by this factor (e.g. 0.5: half the resolution)")
+    ap.add_argument("--every", type=int, default=1,
+                    help="track copies of the clips with every EVERY-th frame only (faster motion)")
     ap.add_argument("--runs", type=int, default=1,
                     help="track every clip with --seed 0..RUNS-1 and average the scores (frame counts are summed)")
     args = ap.parse_args(argv)
@@ -330,8 +369,9 @@ def main() -> None:
     clips = synthetic_clips(seeds, args.cache) + footage_clips(args.footage)
     if args.only:
         clips = [c for c in clips if any(c.name.startswith(o) for o in args.only)]
-    if args.grey:
-        clips = [grey_copy(c, args.cache) for c in clips]
+    if not (0.05 <= args.scale <= 4) or args.every < 1:
+        ap.error("--scale must be in [0.05, 4] and --every at least 1")
+    clips = [variant_copy(c, args.cache, grey=args.grey, scale=args.scale, every=args.every) for c in clips]
     peers = peer_results(clips, args.cache) if args.peers else {}
     work = args.keep or Path(tempfile.mkdtemp(prefix="quality-"))
     work.mkdir(parents=True, exist_ok=True)
