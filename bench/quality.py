@@ -138,8 +138,9 @@ def variant_copy(clip: Clip, cache: Path, *, grey: bool = False, scale: float = 
     - ``every``: every ``every``-th frame only (the object moves that many times farther
       between frames), the truth with them.
 
-    Frames go into an image folder (JPEG quality 95) and the truth into a trackcli truth CSV
-    beside it (centroids kept as centroids, boxes as boxes)."""
+    Frames go into an image folder (JPEG quality 95) and the truth beside it: a trackcli truth
+    CSV for the synthetic clips (their centroids are scored), a box file for the others (box
+    centres are scored)."""
     import cv2
 
     if not grey and scale == 1.0 and every == 1:
