@@ -115,20 +115,6 @@ def footage_clips(footage: Path) -> list[Clip]:
     return clips
 
 
-def _video_frames(path: Path):
-    import cv2
-
-    cap = cv2.VideoCapture(str(path))
-    try:
-        while True:
-            ok, frame = cap.read()
-            if not ok:
-                return
-            yield frame
-    finally:
-        cap.release()
-
-
 def variant_copy(clip: Clip, cache: Path, *, grey: bool = False, scale: float = 1.0, every: int = 1) -> Clip:
     """The clip changed as footage of the same kind may be, cached under ``cache/variants``:
 
@@ -143,6 +129,8 @@ def variant_copy(clip: Clip, cache: Path, *, grey: bool = False, scale: float = 
     centres are scored)."""
     import cv2
 
+    from trackcli.io.video import open_video
+
     if not grey and scale == 1.0 and every == 1:
         return clip
     tag = "-".join([*(["grey"] if grey else []), *([f"x{scale:g}"] if scale != 1.0 else []),
@@ -152,20 +140,15 @@ def variant_copy(clip: Clip, cache: Path, *, grey: bool = False, scale: float = 
     truth = load_truth(clip.truth, object_id=clip.object_id)
     if not done.is_file():
         (folder / "img").mkdir(parents=True, exist_ok=True)
-        if clip.path.is_dir():
-            sources = sorted(p for p in (clip.path / "img").iterdir() if p.suffix.lower() in (".jpg", ".jpeg", ".png"))
-            frames = (cv2.imread(str(p)) for p in sources)
-        else:
-            frames = _video_frames(clip.path)
-        for i, frame in enumerate(frames):
-            if i % every:
-                continue
-            if scale != 1.0:
-                size = (max(1, round(frame.shape[1] * scale)), max(1, round(frame.shape[0] * scale)))
-                frame = cv2.resize(frame, size, interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR)
-            if grey:
-                frame = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
-            cv2.imwrite(str(folder / "img" / f"{i // every:05d}.jpg"), frame, [cv2.IMWRITE_JPEG_QUALITY, 95])
+        with open_video(clip.path, fps=25.0, step=every) as video:  # the rate is not used
+            for i, f in enumerate(video):
+                frame = f.image
+                if scale != 1.0:
+                    size = (max(1, round(frame.shape[1] * scale)), max(1, round(frame.shape[0] * scale)))
+                    frame = cv2.resize(frame, size, interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR)
+                if grey:
+                    frame = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+                cv2.imwrite(str(folder / "img" / f"{i:05d}.jpg"), frame, [cv2.IMWRITE_JPEG_QUALITY, 95])
         keep = truth.frame % every == 0
         rows = zip(truth.frame[keep] // every, truth.centre[keep] * scale, truth.box[keep] * scale, truth.present[keep])
         if truth.centre_kind == "centroid":  # a trackcli truth CSV: the centroid is scored
