@@ -131,3 +131,29 @@ def test_finds_the_object_again_when_it_comes_back_larger(nearer_rows):
     assert not any(r["lost"] == "1" for r in back)
     height = np.median([float(r["bbox_h"]) for r in back])
     assert height == pytest.approx(AXES[1] * NEARER, rel=0.1)
+
+
+@pytest.mark.parametrize("after", [1, 2, 3, 5])
+def test_reacquisition_starts_after_enough_lost_frames_in_a_row_or_in_a_flickering_verdict(after):
+    """``after`` lost frames in a row start re-acquisition, and so do ``after`` lost frames
+    among the last ``2 after - 1`` when the verdict goes back and forth; a shorter dip does not,
+    and neither do lost frames spread thinner than that."""
+    from trackcli.trackers.base import LossRecord
+
+    def fed(verdicts):
+        rec = LossRecord(after)
+        for v in verdicts:
+            rec.push(v)
+        return rec
+
+    assert not fed([]).reacquire
+    assert not fed([True] * (after - 1)).reacquire
+    assert fed([True] * after).reacquire and fed([True] * after).run == after
+    flicker = [True, False] * (after - 1) + [True]  # after lost among 2 after - 1 frames
+    assert fed(flicker).reacquire
+    assert fed([False] * 50 + flicker).reacquire
+    if after > 1:
+        assert not fed(flicker[1:] + [False]).reacquire  # one fewer lost in the window
+        assert not fed([True, False, False] * 20).reacquire  # one in three: too thin
+        assert fed(flicker).run == 1
+    assert not fed([True] * after + [False] * (2 * after - 1)).reacquire  # held long enough: over

@@ -167,7 +167,7 @@ class CondensationSettings:
     miss_probability: float = _f(0.1, "float", "discriminant: probability q that the boundary is not detected on a normal", lo=0, lo_open=True, hi=1)
     colour_weight: float = _f(3.0, "float", "discriminant: weight w_c of the colour term against the edge term", lo=0, hi=100)
     reacquire: bool = _f(True, "bool", "when lost, draw a share of the samples from the colour map of the whole frame (importance sampling)")
-    reacquire_after: int = _f(3, "int", "frames in a row the tracker must be lost before the colour proposal is used (a short dip, e.g. the object brushing the frame's edge, is left to the motion model)", lo=1, hi=1000)
+    reacquire_after: int = _f(3, "int", "the colour proposal is used once the tracker was lost on this many of the last 2*reacquire_after-1 frames: that many in a row, or a verdict going back and forth between lost and held (a shorter dip, e.g. the object brushing the frame's edge, is left to the motion model)", lo=1, hi=1000)
     reacquire_fraction: float = _f(0.25, "float", "share of the samples drawn from the colour proposal while lost", lo=0, lo_open=True, hi=1)
     reacquire_scale: float = _f(2.0, "float", "the samples drawn from the colour proposal also take a scale log-uniform within [1/s, s] of the template's (the object may be found again nearer or farther than it was lost); 1: the template's scale only", lo=1, hi=10)
     reacquire_scale_reference: float = _f(1.0, "float", "reacquire_scale is used only when the template's presence score on its first frame (evidence per normal) is at least this: where the template is barely more object-like than clutter, other scales find clutter as readily as the object")

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Iterable, Iterator
 
@@ -105,6 +106,32 @@ class FrameData:
     time: float
     image: np.ndarray
     features: np.ndarray
+
+
+class LossRecord:
+    """The lost verdicts of the last frames, and from them when to re-acquire.
+
+    Re-acquisition starts once the tracker was lost on at least ``after`` of the last
+    ``2 after - 1`` frames: ``after`` frames in a row, or a verdict that goes back and forth
+    between lost and held (an estimate on a look-alike that resembles the object on one
+    frame and not on the next).  A single short dip (fewer than ``after`` lost frames) is
+    left to the motion model.
+    """
+
+    def __init__(self, after: int):
+        self.after = int(after)
+        self.recent: deque[bool] = deque(maxlen=2 * self.after - 1)
+        self.run = 0  # frames lost in a row
+
+    def push(self, lost: bool) -> None:
+        """Record the verdict of the frame just tracked."""
+        self.recent.append(bool(lost))
+        self.run = self.run + 1 if lost else 0
+
+    @property
+    def reacquire(self) -> bool:
+        """Whether the next frame should draw samples from the re-acquisition proposal."""
+        return sum(self.recent) >= self.after
 
 
 def feature_image(image: np.ndarray, m: MeasurementSettings) -> np.ndarray:

@@ -24,7 +24,7 @@ from trackcli.observe.presence import Presence
 from trackcli.shapes.outline import contour_summary, measurement_sampler
 from trackcli.shapes.shape_space import ShapeSpace
 from trackcli.trackers import condensation as cond
-from trackcli.trackers.base import FrameData, FrameResult, Tracker, run_tracker
+from trackcli.trackers.base import FrameData, FrameResult, LossRecord, Tracker, run_tracker
 
 log = logging.getLogger(__name__)
 
@@ -113,8 +113,9 @@ class CondensationTracker(Tracker):
 
     Every frame's confidence and ``lost`` verdict come from
     :class:`~trackcli.observe.presence.Presence`.  The motion prior is a mixture of the AR(2)
-    prediction and jumps (:func:`translation_jumps`); once the tracker has been lost for
-    ``reacquire_after`` frames in a row, a share of the samples is drawn from the colour
+    prediction and jumps (:func:`translation_jumps`); once the tracker has been lost on
+    ``reacquire_after`` of the last ``2 reacquire_after - 1`` frames
+    (:class:`~trackcli.trackers.base.LossRecord`), a share of the samples is drawn from the colour
     proposal of :func:`trackcli.observe.discriminant.reacquisition_proposal` with its
     importance weights.
 
@@ -176,7 +177,7 @@ class CondensationTracker(Tracker):
         self.jumps = None
         self.scale_search: observe.ScaleSearch | None = None
         self.centre = space.origin + self.X0[:2]
-        self.lost_run = 0  # frames lost in a row
+        self.losses = LossRecord(c.reacquire_after)
         self.k = 0
         self.threads = c.threads  # 0: automatic (see trackcli.trackers.condensation.weigh)
         # the compiled discriminant releases the GIL; the numpy models gain from threads only at large N
@@ -207,9 +208,10 @@ class CondensationTracker(Tracker):
         self.scale_search = self._scale_search()
 
     def _proposal(self, ev: Any, frame: FrameData):
-        """The motion prior's jumps, and after ``reacquire_after`` lost frames the colour proposal."""
+        """The motion prior's jumps, and once lost on ``reacquire_after`` of the last
+        ``2 reacquire_after - 1`` frames (:class:`LossRecord`) the colour proposal."""
         c = self.settings.condensation
-        if not (self.lost_run >= c.reacquire_after and c.reacquire):
+        if not (c.reacquire and self.losses.reacquire):
             return self.jumps
         peaks, strengths = observe.colour_peaks(ev.cmap, self.judge.app.size)
         reacquire = observe.reacquisition_proposal(
@@ -275,7 +277,7 @@ class CondensationTracker(Tracker):
         conf, log_d, score_mean = judge.confidence(ev, pts, nrm, spread, posterior_score=post)
         loglik_mean = score_mean if discriminant else float(loglik(X[None])[0])
         lost = conf < m.lost_below
-        self.lost_run = self.lost_run + 1 if lost else 0
+        self.losses.push(lost)
         if np.isfinite(centroid).all():
             self.centre = centroid
         # normals of the estimate with a feature within the search range (reported, not used)

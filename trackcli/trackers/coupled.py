@@ -14,8 +14,9 @@ Each frame: select by weight, predict (the centre with its velocity plus noise, 
 as in CONDENSATION's motion prior; each ray with a small random walk), weigh (NCC maps of
 every part over a window around its predicted position, read at every sample's part
 position).  The estimate is the weighted mean; its confidence is the mean NCC of the
-parts at the estimate, mapped to [0, 1] (:data:`NCC_LOST`, :data:`NCC_SURE`).  After
-``condensation.reacquire_after`` lost frames a share of the samples is drawn about the
+parts at the estimate, mapped to [0, 1] (:data:`NCC_LOST`, :data:`NCC_SURE`).  Once lost on
+``condensation.reacquire_after`` of the last ``2 reacquire_after - 1`` frames
+(:class:`~trackcli.trackers.base.LossRecord`) a share of the samples is drawn about the
 peaks of the whole frame's part votes, with importance weights (:meth:`CoupledTracker._reacquire`).  The template's outline follows the centre (translation)
 and the mean change of the rays (scale and rotation), so the track CSV, ``eval`` and
 ``render`` work as for the other trackers; the parts' positions and scores are extra
@@ -32,7 +33,7 @@ from trackcli.errors import ConfigError
 from trackcli.shapes.outline import contour_summary, object_size
 from trackcli.shapes.structure import Part, parts_from_template
 from trackcli.trackers import condensation as cond
-from trackcli.trackers.base import FrameData, FrameResult, Tracker
+from trackcli.trackers.base import FrameData, FrameResult, LossRecord, Tracker
 
 PART_RGB = (255, 200, 0)
 RAY_RGB = (255, 255, 255)
@@ -74,7 +75,7 @@ class CoupledTracker(Tracker):
         self.prev_centre = self.state[:, :2].copy()
         self.log_w = np.full(n, -np.log(n))
         self.first = True
-        self.lost_run = 0
+        self.losses = LossRecord(settings.condensation.reacquire_after)
         self.extra_columns = [f"{p.name}_{k}" for p in self.parts for k in ("x", "y", "ncc")]
 
     # -- the model ---------------------------------------------------------------------------
@@ -223,7 +224,7 @@ class CoupledTracker(Tracker):
             parents = cond.resample(np.exp(self.log_w), self.state.shape[0], self.rng, "systematic")
             state, prev = self._predict(self.state[parents], self.prev_centre[parents])
             c = self.settings.condensation
-            if c.reacquire and self.lost_run >= c.reacquire_after:
+            if c.reacquire and self.losses.reacquire:
                 correction = self._reacquire(grey, state, prev)
         pos = self.part_positions(state)
         # samples in several places after re-acquisition: one window over all of them
@@ -251,7 +252,7 @@ class CoupledTracker(Tracker):
         X_std[:2] = spread
         conf = float(np.clip((np.mean(est_ncc) - NCC_LOST) / (NCC_SURE - NCC_LOST), 0.0, 1.0))
         lost = conf < self.settings.measurement.lost_below
-        self.lost_run = self.lost_run + 1 if lost else 0
+        self.losses.push(lost)
         extra = {}
         for p, xy, q in zip(self.parts, est_parts, est_ncc):
             extra.update({f"{p.name}_x": float(xy[0]), f"{p.name}_y": float(xy[1]), f"{p.name}_ncc": float(q)})
