@@ -148,12 +148,11 @@ def test_reacquisition_starts_after_enough_lost_frames_in_a_row_or_in_a_flickeri
 
     assert not fed([]).reacquire
     assert not fed([True] * (after - 1)).reacquire
-    assert fed([True] * after).reacquire and fed([True] * after).run == after
+    assert fed([True] * after).reacquire
     flicker = [True, False] * (after - 1) + [True]  # after lost among 2 after - 1 frames
     assert fed(flicker).reacquire
     assert fed([False] * 50 + flicker).reacquire
     if after > 1:
         assert not fed(flicker[1:] + [False]).reacquire  # one fewer lost in the window
         assert not fed([True, False, False] * 20).reacquire  # one in three: too thin
-        assert fed(flicker).run == 1
     assert not fed([True] * after + [False] * (2 * after - 1)).reacquire  # held long enough: over

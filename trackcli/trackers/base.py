@@ -121,12 +121,10 @@ class LossRecord:
     def __init__(self, after: int):
         self.after = int(after)
         self.recent: deque[bool] = deque(maxlen=2 * self.after - 1)
-        self.run = 0  # frames lost in a row
 
     def push(self, lost: bool) -> None:
         """Record the verdict of the frame just tracked."""
         self.recent.append(bool(lost))
-        self.run = self.run + 1 if lost else 0
 
     @property
     def reacquire(self) -> bool:
