@@ -23,7 +23,9 @@ The dev set:
 
 With ``--grey`` every clip is replaced by a grey copy of it (one-channel JPEG frames, as many
 public benchmark sequences are), with ``--scale F`` by a copy at F times its resolution, with
-``--every K`` by a copy of every K-th frame (K times faster motion); the options combine, and
+``--every K`` by a copy of every K-th frame (K times faster motion), with ``--start F`` by the
+clip from F of its length on, with ``--reverse`` by the clip played backwards from its last
+frame (or from F back to its start); the options combine, and
 the copies are cached in ``--cache``.  They show how far the defaults hold on footage of the
 same kind but not the same make.
 
@@ -34,7 +36,7 @@ results do not depend on trackcli and are cached.
 Usage::
 
     python bench/quality.py [--seeds 1,2,3] [--footage DIR] [--peers] [--only NAME ...]
-        [--json FILE] [--grey] [--scale F] [--every K] [--runs K] [-- EXTRA TRACK OPTIONS]
+        [--json FILE] [--grey] [--scale F] [--every K] [--start F] [--reverse] [--runs K] [-- EXTRA TRACK OPTIONS]
 
 Everything after ``--`` is passed to ``trackcli track`` (e.g. ``-- --particles 1000``).
 ``--runs K`` tracks every clip with seeds 0..K-1 and averages the scores: one run of a particle
@@ -115,14 +117,20 @@ def footage_clips(footage: Path) -> list[Clip]:
     return clips
 
 
-def variant_copy(clip: Clip, cache: Path, *, grey: bool = False, scale: float = 1.0, every: int = 1) -> Clip:
+def variant_copy(clip: Clip, cache: Path, *, grey: bool = False, scale: float = 1.0, every: int = 1,
+                 reverse: bool = False, start: float = 0.0) -> Clip:
     """The clip changed as footage of the same kind may be, cached under ``cache/variants``:
 
     - ``grey``: its frames in grey (one-channel JPEGs, as grey benchmark sequences ship);
     - ``scale``: its frames resized by this factor (a lower or higher resolution), the truth
       and the frame-0 box with them;
     - ``every``: every ``every``-th frame only (the object moves that many times farther
-      between frames), the truth with them.
+      between frames), the truth with them;
+    - ``start``: from the first frame with the object in view at or after this share of the
+      clip's length (another first frame, another template, the rest of the clip ahead);
+    - ``reverse``: played backwards, from the last frame with the object in view (after
+      ``start``: from there back to the first frame).  A clip run backwards is a new clip of
+      the same kind: another first frame to draw the template on, the motion reversed.
 
     Frames go into an image folder (JPEG quality 95) and the truth beside it: a trackcli truth
     CSV for the synthetic clips (their centroids are scored), a box file for the others (box
@@ -131,26 +139,45 @@ def variant_copy(clip: Clip, cache: Path, *, grey: bool = False, scale: float = 
 
     from trackcli.io.video import open_video
 
-    if not grey and scale == 1.0 and every == 1:
+    if not grey and scale == 1.0 and every == 1 and not reverse and start == 0.0:
         return clip
     tag = "-".join([*(["grey"] if grey else []), *([f"x{scale:g}"] if scale != 1.0 else []),
-                    *([f"every{every}"] if every != 1 else [])])
+                    *([f"every{every}"] if every != 1 else []), *([f"from{start:g}"] if start else []),
+                    *(["reverse"] if reverse else [])])
     folder = cache / "variants" / tag / clip.name.replace("@", "-")
     done = folder / ".complete"
     truth = load_truth(clip.truth, object_id=clip.object_id)
+    # the original frames kept, in the copy's order
+    kept = truth.frame[(truth.frame % every == 0)]
+    present = dict(zip(truth.frame.tolist(), truth.present.tolist()))
+    in_view = [f for f in kept.tolist() if present[f]]
+    if not in_view:
+        raise SystemExit(f"{clip.name}: the object is never in view")
+    first = next((f for f in in_view if f >= start * (int(truth.frame.max()) + 1)), in_view[-1])
+    if reverse:  # from `first` (or the last frame in view) back to the first frame
+        anchor = first if start else in_view[-1]
+        order = [f for f in kept.tolist() if f <= anchor][::-1]
+    else:
+        order = [f for f in kept.tolist() if f >= first]
     if not done.is_file():
         (folder / "img").mkdir(parents=True, exist_ok=True)
-        with open_video(clip.path, fps=25.0, step=every) as video:  # the rate is not used
-            for i, f in enumerate(video):
-                frame = f.image
-                if scale != 1.0:
-                    size = (max(1, round(frame.shape[1] * scale)), max(1, round(frame.shape[0] * scale)))
-                    frame = cv2.resize(frame, size, interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR)
-                if grey:
-                    frame = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
-                cv2.imwrite(str(folder / "img" / f"{i:05d}.jpg"), frame, [cv2.IMWRITE_JPEG_QUALITY, 95])
-        keep = truth.frame % every == 0
-        rows = zip(truth.frame[keep] // every, truth.centre[keep] * scale, truth.box[keep] * scale, truth.present[keep])
+        wanted = set(order)
+        images = {}
+        with open_video(clip.path, fps=25.0) as video:  # the rate is not used
+            for f in video:
+                if f.index in wanted:
+                    images[f.index] = f.image
+        for i, k in enumerate(order):
+            frame = images[k]
+            if scale != 1.0:
+                size = (max(1, round(frame.shape[1] * scale)), max(1, round(frame.shape[0] * scale)))
+                frame = cv2.resize(frame, size, interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR)
+            if grey:
+                frame = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+            cv2.imwrite(str(folder / "img" / f"{i:05d}.jpg"), frame, [cv2.IMWRITE_JPEG_QUALITY, 95])
+        at = {int(f): i for i, f in enumerate(truth.frame.tolist())}
+        idx = [at[k] for k in order]
+        rows = zip(range(len(order)), truth.centre[idx] * scale, truth.box[idx] * scale, truth.present[idx])
         if truth.centre_kind == "centroid":  # a trackcli truth CSV: the centroid is scored
             lines = ["frame,object,cx,cy,bbox_x,bbox_y,bbox_w,bbox_h,visible"]
             lines += [f"{f},0,{c[0]:.4f},{c[1]:.4f},{b[0]:.4f},{b[1]:.4f},{b[2]:.4f},{b[3]:.4f},{int(v)}"
@@ -159,7 +186,7 @@ def variant_copy(clip: Clip, cache: Path, *, grey: bool = False, scale: float = 
             lines = [",".join(f"{x:.3f}" for x in b) if v else "0,0,0,0" for _, _, b, v in rows]
         (folder / TRUTH_NAME[truth.centre_kind]).write_text("\n".join(lines) + "\n")
         done.touch()
-    box = tuple(v * scale for v in clip.box)
+    box = tuple(float(v) * scale for v in truth.box[list(truth.frame).index(order[0])])
     return Clip(f"{clip.name}-{tag}", clip.kind, folder, folder / TRUTH_NAME[truth.centre_kind], box)
 
 
@@ -344,6 +371,11 @@ def main() -> None:
                     help="track copies of the clips resized by this factor (e.g. 0.5: half the resolution)")
     ap.add_argument("--every", type=int, default=1,
                     help="track copies of the clips with every EVERY-th frame only (faster motion)")
+    ap.add_argument("--reverse", action="store_true",
+                    help="track the clips played backwards, from the last frame with the object in view")
+    ap.add_argument("--start", type=float, default=0.0,
+                    help="track the clips from the first frame in view at or after this share of their length "
+                         "(e.g. 0.5: from the middle; with --reverse, back from there)")
     ap.add_argument("--runs", type=int, default=1,
                     help="track every clip with --seed 0..RUNS-1 and average the scores (frame counts are summed)")
     args = ap.parse_args(argv)
@@ -353,9 +385,10 @@ def main() -> None:
     clips = synthetic_clips(seeds, args.cache) + footage_clips(args.footage)
     if args.only:
         clips = [c for c in clips if any(c.name.startswith(o) for o in args.only)]
-    if not (0.05 <= args.scale <= 4) or args.every < 1:
-        ap.error("--scale must be in [0.05, 4] and --every at least 1")
-    clips = [variant_copy(c, args.cache, grey=args.grey, scale=args.scale, every=args.every) for c in clips]
+    if not (0.05 <= args.scale <= 4) or args.every < 1 or not (0.0 <= args.start < 1.0):
+        ap.error("--scale must be in [0.05, 4], --every at least 1 and --start in [0, 1)")
+    clips = [variant_copy(c, args.cache, grey=args.grey, scale=args.scale, every=args.every, reverse=args.reverse,
+                          start=args.start) for c in clips]
     peers = peer_results(clips, args.cache) if args.peers else {}
     work = args.keep or Path(tempfile.mkdtemp(prefix="quality-"))
     work.mkdir(parents=True, exist_ok=True)
