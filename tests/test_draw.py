@@ -353,6 +353,39 @@ def test_fit_template_of_an_ellipse_is_close():
     np.testing.assert_allclose(r, 1.0, atol=0.01)
 
 
+def _swan_mask() -> np.ndarray:
+    """A body, a long neck 12 px wide rising from its right end, a head and a beak: a
+    swan's side view, whose neck the 12-control-point fit cannot follow."""
+    m = np.zeros((500, 600), np.uint8)
+    cv2.ellipse(m, ((250, 400), (260, 110), 0), 255, -1)
+    cv2.rectangle(m, (340, 160), (352, 400), 255, -1)
+    cv2.circle(m, (346, 160), 24, 255, -1)
+    cv2.ellipse(m, ((380, 165), (36, 12), 15), 255, -1)
+    return m
+
+
+def test_fit_template_does_not_take_away_an_end_of_the_object(caplog):
+    # The fallback for thin parts opens the mask; on a swan that takes the neck and head,
+    # and the template lost the top 60 % of the object.  An opening that costs the object
+    # its extent is refused, and the convex hull is used.
+    outline = draw.mask_outline(_swan_mask()).astype(float)
+    with caplog.at_level(logging.WARNING, logger="trackcli"):
+        t = draw.fit_template(outline, 12)
+    curve = dense_polygon(t.Q, t.basis(), 500)
+    extent = (curve.max(axis=0) - curve.min(axis=0)) / (outline.max(axis=0) - outline.min(axis=0))
+    assert np.all(extent >= draw.LEAK_EXTENT), extent
+    assert "convex hull" in t.source and "convex hull" in caplog.text
+    # thin strands beside the object, within its extent, are still taken away
+    m = np.zeros((300, 400), np.uint8)
+    cv2.ellipse(m, ((200, 150), (200, 150), 0), 255, -1)
+    cv2.line(m, (255, 112), (298, 77), 255, 3)
+    cv2.line(m, (150, 210), (105, 222), 255, 3)
+    t = draw.fit_template(draw.mask_outline(m).astype(float), 12)
+    assert "thin parts removed" in t.source
+    assert draw.mask_iou(template_mask(t, (400, 300)), cv2.ellipse(np.zeros_like(m), ((200, 150), (200, 150), 0),
+                                                                   255, -1)) > 0.97
+
+
 def test_render_preview_draws_on_a_copy():
     rng = np.random.default_rng(2)
     img = np.clip(rng.normal(128, 5, (120, 160, 3)), 0, 255).astype(np.uint8)
