@@ -78,11 +78,25 @@ def davis_cases(footage: Path, every: int):
             yield folder.name, img, (m > 0).astype(np.uint8) * 255, box
 
 
+def template_mask(mask: np.ndarray) -> np.ndarray:
+    """The mask of the template ``draw`` fits to ``mask``'s outline (12 control points, its
+    fallbacks included), rasterised."""
+    import logging
+
+    from trackcli.shapes.spline import dense_polygon
+
+    logging.getLogger("trackcli").setLevel(logging.ERROR)  # the fallbacks' warnings
+    t = draw.fit_template(draw.mask_outline(mask), 12, frame_size=(mask.shape[1], mask.shape[0]))
+    return draw.polygon_mask(dense_polygon(t.Q, t.basis(), 400), (mask.shape[1], mask.shape[0]))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="1,2,3,4")
     ap.add_argument("--footage", type=Path, default=REPO.parent / "shared" / "footage")
     ap.add_argument("--every", type=int, default=5, help="DAVIS: every N-th frame")
+    ap.add_argument("--fit", action="store_true",
+                    help="also score the template draw makes of each mask (12 control points), rasterised")
     args = ap.parse_args()
     seeds = [int(s) for s in args.seeds.split(",") if s]
     groups: dict[str, list[float]] = {}
@@ -91,19 +105,32 @@ def main() -> None:
     cases = list(synthetic_cases(seeds))
     if args.footage.is_dir():
         cases += list(davis_cases(args.footage, args.every))
+    fitted: dict[str, list[float]] = {}
     for name, img, truth, box in cases:
         mask = draw.segment_box(img, box)
         groups.setdefault(name, []).append(draw.mask_iou(mask, truth))
+        if args.fit:
+            fitted.setdefault(name, []).append(draw.mask_iou(template_mask(mask), truth))
         n += 1
     sec = time.perf_counter() - t0
-    print(f"{'group':28s} {'cases':>5s} {'mean IoU':>9s} {'min':>6s}")
+    head = f"{'group':28s} {'cases':>5s} {'mean IoU':>9s} {'min':>6s}"
+    print(head + (f" {'template':>9s} {'min':>6s}" if args.fit else ""))
     synth, real = [], []
+    synth_fit, real_fit = [], []
     for name, v in groups.items():
         (real if name.startswith("davis") else synth).extend(v)
-        print(f"{name:28s} {len(v):5d} {statistics.mean(v):9.3f} {min(v):6.3f}")
-    for label, v in (("all synthetic", synth), ("all DAVIS", real)):
+        line = f"{name:28s} {len(v):5d} {statistics.mean(v):9.3f} {min(v):6.3f}"
+        if args.fit:
+            f = fitted[name]
+            (real_fit if name.startswith("davis") else synth_fit).extend(f)
+            line += f" {statistics.mean(f):9.3f} {min(f):6.3f}"
+        print(line)
+    for label, v, f in (("all synthetic", synth, synth_fit), ("all DAVIS", real, real_fit)):
         if v:
-            print(f"{label:28s} {len(v):5d} {statistics.mean(v):9.3f} {min(v):6.3f}")
+            line = f"{label:28s} {len(v):5d} {statistics.mean(v):9.3f} {min(v):6.3f}"
+            if args.fit:
+                line += f" {statistics.mean(f):9.3f} {min(f):6.3f}"
+            print(line)
     print(f"{n} segmentations in {sec:.1f} s")
 
 
