@@ -386,6 +386,21 @@ def test_fit_template_does_not_take_away_an_end_of_the_object(caplog):
                                                                    255, -1)) > 0.97
 
 
+def test_the_convex_hull_fallback_does_not_fold():
+    # The inscribed-ellipse fallback of a 17 x 50 px box (a pedestrian) goes on to the convex
+    # hull, whose fit once folded back along the long sides: three control points doubling
+    # back, normals facing the wrong way (30 runs of that clip: P@20 0.80, 0.97 unfolded).
+    from test_spline import _curve_to_polygon, _runs_against
+
+    m = np.zeros((288, 352), np.uint8)
+    cv2.ellipse(m, ((213.5, 176.0), (17.0, 50.0), 0.0), 255, -1)
+    outline = draw.canonical_start(draw.mask_outline(m).astype(float))
+    t = draw.fit_template(outline, 12)
+    assert "convex hull" in t.source
+    assert _runs_against(t.Q, 12, outline) == 0
+    assert _curve_to_polygon(t.Q, 12, outline) < 1.5
+
+
 def test_render_preview_draws_on_a_copy():
     rng = np.random.default_rng(2)
     img = np.clip(rng.normal(128, 5, (120, 160, 3)), 0, 255).astype(np.uint8)

@@ -427,3 +427,59 @@ def test_fit_errors(points, kwargs, error, match):
     n_ctrl = kwargs.pop("n_ctrl")
     with pytest.raises(error, match=match):
         fit(points, n_ctrl, **kwargs)
+
+
+def _pixel_outline_of_ellipse(cx, cy, a, b, angle=0.0):
+    """The pixel boundary of a filled ellipse, as a segmentation mask gives it."""
+    import cv2
+
+    from trackcli.shapes.draw import canonical_start, mask_outline
+
+    m = np.zeros((int(cy + b + a + 20), int(cx + a + b + 20)), np.uint8)
+    cv2.ellipse(m, ((cx, cy), (2 * a, 2 * b), angle), 255, -1)
+    return canonical_start(mask_outline(m).astype(float))
+
+
+def _curve_to_polygon(Q, n_ctrl, polygon):
+    """Largest distance from the fitted curve to the closed polygon (px)."""
+    import cv2
+
+    curve = dense_polygon(Q, SplineBasis(n_ctrl), 2000)
+    contour = polygon.astype(np.float32).reshape(-1, 1, 2)
+    return max(abs(cv2.pointPolygonTest(contour, (float(x), float(y)), True)) for x, y in curve)
+
+
+def _runs_against(Q, n_ctrl, polygon):
+    """How many dense curve points run more than 120 degrees against the polygon's direction
+    at the nearest polygon point (a fold or a loop of the curve)."""
+    basis = SplineBasis(n_ctrl)
+    s = np.linspace(0, basis.L, 1000, endpoint=False)
+    C = np.stack((Q[:n_ctrl], Q[n_ctrl:]), axis=1)
+    c, t = basis.basis(s) @ C, basis.basis_derivative(s, 1) @ C
+    along = np.roll(polygon, -2, axis=0) - np.roll(polygon, 2, axis=0)
+    near = np.argmin(np.linalg.norm(c[:, None] - polygon[None], axis=-1), axis=1)
+    cos = np.sum(t * along[near], axis=1) / (np.linalg.norm(t, axis=1) * np.linalg.norm(along[near], axis=1))
+    return int(np.count_nonzero(cos < -0.5))
+
+
+@pytest.mark.parametrize("n_ctrl", [12, 16, 24, 32])
+@pytest.mark.parametrize("a, b, angle", [(8.5, 25, 0.0), (7, 18, 0.0), (40, 12, 30.0), (60, 45, 0.0)])
+def test_strict_fit_of_a_pixel_outline_stays_on_it(n_ctrl, a, b, angle):
+    # Without strict the refinement slides control points along such outlines until the
+    # curve folds back or throws out loops: 12 control points on the 17 x 50 px ellipse
+    # ended 30 px off it.
+    outline = _pixel_outline_of_ellipse(100.0, 100.0, a, b, angle)
+    Q = fit(outline, n_ctrl, strict=True)
+    assert _curve_to_polygon(Q, n_ctrl, outline) < 1.5
+    assert _runs_against(Q, n_ctrl, outline) == 0
+    # and the refinement does not end farther from the points than the chord-length fit
+    Q0 = fit(outline, n_ctrl, refine=0)
+    assert _curve_to_polygon(Q, n_ctrl, outline) <= _curve_to_polygon(Q0, n_ctrl, outline) + 0.5
+
+
+def test_plain_fit_of_a_pixel_outline_can_fold():
+    # what strict is for: the plain refinement folds the curve back along this ellipse's sides
+    outline = _pixel_outline_of_ellipse(100.0, 100.0, 40, 12, 30.0)
+    assert _runs_against(fit(outline, 12), 12, outline) > 0
+    assert _runs_against(fit(outline, 12, strict=True), 12, outline) == 0
+

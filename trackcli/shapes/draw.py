@@ -504,7 +504,9 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
             # always fits, and is what a contour of this many control points can track.
             hull = cv2.convexHull(outline.astype(np.float32))[:, 0, :].astype(float)
             hull = _resample_polygon(canonical_start(hull), max(8 * n_ctrl, 128), True)
-            Q = fit(hull, n_ctrl, degree=degree, closed=True)
+            # strict: without it the refinement folded the curve back along the hull's straight
+            # sides (crossing's pedestrian, 30 runs: P@20 0.80 with the folded template, 0.97)
+            Q = fit(hull, n_ctrl, degree=degree, closed=True, strict=True)
             cp = np.column_stack([Q[:n_ctrl], Q[n_ctrl:]])
             hull_t = Template(cp, degree=degree, closed=closed, clip=clip, frame=frame, frame_size=frame_size,
                               source=source + " (convex hull)")
