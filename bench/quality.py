@@ -30,8 +30,9 @@ the copies are cached in ``--cache``.  They show how far the defaults hold on fo
 same kind but not the same make.
 
 With ``--peers`` the same clips are tracked by OpenCV's CSRT, KCF and MIL from the same box
-(CSRT and KCF need ``opencv-contrib-python-headless``; MIL is in the plain wheel).  Peer
-results do not depend on trackcli and are cached.
+(CSRT and KCF need ``opencv-contrib-python-headless``; MIL is in the plain wheel), five times
+per clip in a fresh process, the scores averaged (MIL is random).  Peer results do not depend
+on trackcli and are cached.
 
 Usage::
 
@@ -325,17 +326,45 @@ def run_peer(name: str, clip: Clip, work: Path) -> dict | None:
     return score(csv, clip)
 
 
+#: runs of each peer per clip, averaged (MIL is random, and cannot be seeded from here)
+PEER_RUNS = 5
+
+
+def run_peer_fresh(name: str, clip: Clip, work: Path, runs: int = PEER_RUNS) -> dict | None:
+    """:func:`run_peer` ``runs`` times in a process of its own, the scores averaged.
+
+    MIL draws random samples and keeps its random state from one tracker to the next within
+    a process; ``cv2.setRNGSeed`` does not reset it.  The same clip scored P@20 0.42 on a
+    process's first run and 1.00 on its second, and figures cached by earlier runs of this
+    script moved with the order of the clips (one from 1.00 to 0.10).  A fresh process makes
+    the runs the same every time, and their mean is a fairer figure than one run."""
+    import multiprocessing
+
+    with multiprocessing.get_context("spawn").Pool(1) as pool:
+        return pool.apply(_peer_runs, (name, clip, work, runs))
+
+
+def _peer_runs(name: str, clip: Clip, work: Path, runs: int) -> dict | None:
+    results = [run_peer(name, clip, work) for _ in range(runs)]
+    if any(r is None for r in results):
+        return None
+    out = {k: float(np.mean([r[k] for r in results])) for k in ("p20", "p10", "auc", "err_mean")}
+    out.update({k: int(sum(r[k] for r in results)) for k in ("frames", "lost", "bad", "good", "lost_bad", "lost_good")})
+    out["p20_runs"] = [r["p20"] for r in results]
+    return out
+
+
 def peer_results(clips: list[Clip], cache: Path) -> dict:
     import cv2
 
-    path = cache / f"peers-{cv2.__version__}.json"
+    path = cache / f"peers-{cv2.__version__}-x{PEER_RUNS}.json"
     done = json.loads(path.read_text()) if path.is_file() else {}
     work = Path(tempfile.mkdtemp(prefix="peers-"))
     for clip in clips:
         for name in PEERS:
             key = f"{clip.name}:{name}"
             if key not in done:
-                res = run_peer(name, clip, work)
+                res = run_peer_fresh(name, clip, work)
                 if res is not None:
                     done[key] = res
                     path.write_text(json.dumps(done, indent=1))
