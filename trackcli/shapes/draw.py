@@ -493,7 +493,7 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
                 # the parts taken away must be thin ones beside the object (a strand of
                 # reflection), not one of its ends (a swan's neck and head): the object drawn
                 # keeps its extent, as when a leak is taken out (LEAK_EXTENT)
-                extent = (opened.max(axis=0) - opened.min(axis=0)) / np.maximum(hi - lo - 4, 1.0)
+                extent = np.ptp(opened, axis=0) / np.maximum(np.ptp(outline, axis=0), 1.0)
                 if err_s <= tol and np.all(extent >= LEAK_EXTENT):
                     log.warning("the outline has thin parts the %d-control-point fit strayed on (%.0f px off); "
                                 "they were removed (%.0f px)", n_ctrl, err, err_s)
