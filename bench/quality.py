@@ -160,24 +160,23 @@ def variant_copy(clip: Clip, cache: Path, *, grey: bool = False, scale: float = 
         order = [f for f in kept.tolist() if f <= anchor][::-1]
     else:
         order = [f for f in kept.tolist() if f >= first]
+    row = {f: i for i, f in enumerate(truth.frame.tolist())}  # the truth's row of each frame
     if not done.is_file():
         (folder / "img").mkdir(parents=True, exist_ok=True)
-        wanted = set(order)
-        images = {}
+        position = {f: i for i, f in enumerate(order)}  # each kept frame's place in the copy
         with open_video(clip.path, fps=25.0) as video:  # the rate is not used
             for f in video:
-                if f.index in wanted:
-                    images[f.index] = f.image
-        for i, k in enumerate(order):
-            frame = images[k]
-            if scale != 1.0:
-                size = (max(1, round(frame.shape[1] * scale)), max(1, round(frame.shape[0] * scale)))
-                frame = cv2.resize(frame, size, interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR)
-            if grey:
-                frame = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
-            cv2.imwrite(str(folder / "img" / f"{i:05d}.jpg"), frame, [cv2.IMWRITE_JPEG_QUALITY, 95])
-        at = {int(f): i for i, f in enumerate(truth.frame.tolist())}
-        idx = [at[k] for k in order]
+                if f.index not in position:
+                    continue
+                frame = f.image
+                if scale != 1.0:
+                    size = (max(1, round(frame.shape[1] * scale)), max(1, round(frame.shape[0] * scale)))
+                    frame = cv2.resize(frame, size, interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR)
+                if grey:
+                    frame = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+                cv2.imwrite(str(folder / "img" / f"{position[f.index]:05d}.jpg"), frame,
+                            [cv2.IMWRITE_JPEG_QUALITY, 95])
+        idx = [row[k] for k in order]
         rows = zip(range(len(order)), truth.centre[idx] * scale, truth.box[idx] * scale, truth.present[idx])
         if truth.centre_kind == "centroid":  # a trackcli truth CSV: the centroid is scored
             lines = ["frame,object,cx,cy,bbox_x,bbox_y,bbox_w,bbox_h,visible"]
@@ -187,7 +186,7 @@ def variant_copy(clip: Clip, cache: Path, *, grey: bool = False, scale: float = 
             lines = [",".join(f"{x:.3f}" for x in b) if v else "0,0,0,0" for _, _, b, v in rows]
         (folder / TRUTH_NAME[truth.centre_kind]).write_text("\n".join(lines) + "\n")
         done.touch()
-    box = tuple(float(v) * scale for v in truth.box[list(truth.frame).index(order[0])])
+    box = tuple(float(v) * scale for v in truth.box[row[order[0]]])
     return Clip(f"{clip.name}-{tag}", clip.kind, folder, folder / TRUTH_NAME[truth.centre_kind], box)
 
 
@@ -232,10 +231,16 @@ def run_trackcli_seeds(clip: Clip, work: Path, extra: list[str], runs: int) -> t
             return res, w
         results.append(res)
         wall += w
+    return mean_scores(results), wall / runs
+
+
+def mean_scores(results: list[dict]) -> dict:
+    """The scores of several runs of one clip: rates averaged, frame counts summed, and each
+    run's P@20."""
     out = {k: float(np.mean([r[k] for r in results])) for k in ("p20", "p10", "auc", "err_mean")}
     out.update({k: int(sum(r[k] for r in results)) for k in ("frames", "lost", "bad", "good", "lost_bad", "lost_good")})
     out["p20_runs"] = [r["p20"] for r in results]
-    return out, wall / runs
+    return out
 
 
 def run_trackcli(clip: Clip, work: Path, extra: list[str]) -> tuple[dict, float]:
@@ -346,12 +351,7 @@ def run_peer_fresh(name: str, clip: Clip, work: Path, runs: int = PEER_RUNS) -> 
 
 def _peer_runs(name: str, clip: Clip, work: Path, runs: int) -> dict | None:
     results = [run_peer(name, clip, work) for _ in range(runs)]
-    if any(r is None for r in results):
-        return None
-    out = {k: float(np.mean([r[k] for r in results])) for k in ("p20", "p10", "auc", "err_mean")}
-    out.update({k: int(sum(r[k] for r in results)) for k in ("frames", "lost", "bad", "good", "lost_bad", "lost_good")})
-    out["p20_runs"] = [r["p20"] for r in results]
-    return out
+    return None if any(r is None for r in results) else mean_scores(results)
 
 
 def peer_results(clips: list[Clip], cache: Path) -> dict:
