@@ -428,15 +428,17 @@ def per_normal_reference(app: Appearance, ev: FrameEvidence, points: np.ndarray,
         total = np.bincount(row, weights=g, minlength=k1 - k0)
         n_in = np.bincount(row[inside], minlength=k1 - k0)
         log_d[k0:k1] = base[k0:k1] + n_in * log_ratio_in[k0:k1] + np.log(miss + total)
-    # colour: the log-ratio map sampled inside (-offsets) and outside (+offsets) every normal;
-    # beyond the frame's edge it reads 0 (no evidence either way): replicating the border
-    # would let an outline that has left the frame score the colours of the frame's edge
+    # colour: the log-ratio map's nearest pixels inside (-offsets) and outside (+offsets) every
+    # normal; beyond the frame's edge it reads 0 (no evidence either way): replicating the
+    # border would let an outline that has left the frame score the colours of the frame's edge
     u, weights = _colour_profile(app)
-    colour = np.empty(k_total)
-    step = 8192
-    for k0 in range(0, k_total, step):
-        k1 = min(k0 + step, k_total)
-        colour[k0:k1] = _remap_rows(ev.cmap, pts[k0:k1], nrm[k0:k1], u, outside=0.0) @ weights
+    p32, n32 = pts.astype(np.float32), nrm.astype(np.float32)
+    x = np.floor(n32[:, None, 0] * u + p32[:, None, 0] + np.float32(0.5)).astype(np.int64)
+    y = np.floor(n32[:, None, 1] * u + p32[:, None, 1] + np.float32(0.5)).astype(np.int64)
+    cmap = np.asarray(ev.cmap, dtype=np.float32)
+    inside = (x >= 0) & (x < cmap.shape[1]) & (y >= 0) & (y < cmap.shape[0])
+    values = np.where(inside, cmap[np.where(inside, y, 0), np.where(inside, x, 0)], np.float32(0.0))
+    colour = values.astype(np.float64) @ weights
     return log_d.reshape(lead), colour.reshape(lead)
 
 
