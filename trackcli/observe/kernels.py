@@ -14,14 +14,15 @@ separate cores.
 The feature image is sampled as ``cv2.remap`` with ``INTER_LINEAR`` does (OpenCV 5
 interpolates at the exact float position), border pixels replicated; features are located to
 a fraction of a pixel, so the profile needs the interpolation.  The colour map is read at the
-nearest pixel, 0 outside the frame: it is a log-ratio of histogram bins, constant over regions
-of one colour, and is averaged over several places per normal; interpolating it cost a tenth of the
-kernel's time.  Along normals whose whole segment lies inside the image (nearly all) the
-profile is read without border tests, the coordinates first and the pixels in a second loop.
-The local maxima are found a word of 32 candidates at a time, as the bits of an integer (a
-loop of fixed length the compiler vectorises), and only the set bits are visited.  For the tracker's
-weights, :func:`discriminant_curves` sums each curve's terms in the kernel and takes one
-logarithm of the product of its normals' factors instead of one per normal.
+nearest pixel, 0 outside the frame: it is a log-ratio of histogram bins, constant over
+regions of one colour, and is averaged over several places per normal; interpolating it cost
+up to a tenth of the kernel's time.  Along normals whose whole segment lies inside the image
+(nearly all) the profile is read without border tests, the coordinates first and the pixels
+in a second loop.  The local maxima are found a word of 32 candidates at a time, as the bits
+of an integer (a loop of fixed length the compiler vectorises), and only the set bits are
+visited.  For the tracker's weights, :func:`discriminant_curves` sums each curve's terms in
+the kernel and takes one logarithm of the product of its normals' factors instead of one per
+normal.
 The numpy version, :func:`trackcli.observe.discriminant.per_normal_reference`, is kept as the
 reference the kernel is tested against.  The compiled code is cached next to this file
 (``cache=True``): only the first run after installation compiles it (a few seconds).
