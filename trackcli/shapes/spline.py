@@ -33,6 +33,7 @@ span and knot arithmetic; split, each part would re-derive it.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -691,8 +692,8 @@ def fit(
     cost = _fit_cost(basis, Q, p, s)
     check = strict and refine > 0
     if check:
-        along = _outline_direction(p, closed)
-        stray, against = _curve_terms(basis, Q, p, along)
+        curve_terms = _curve_terms(basis, p)
+        stray, against = curve_terms(Q)
         cost += stray
     # Gauss–Newton on control points and parameters together.  Eliminating each s_p
     # leaves the distance from p to the tangent line at its foot point; a light
@@ -720,7 +721,7 @@ def fit(
                 if cost_new < cost:
                     break
             else:
-                stray, against_new = _curve_terms(basis, Q_new, p, along)
+                stray, against_new = curve_terms(Q_new)
                 cost_new += stray
                 if cost_new < cost and against_new <= against:
                     break
@@ -747,38 +748,47 @@ _TANGENT_WEIGHT = 1e-3
 _CURVE_SAMPLES = 8
 
 
-def _curve_terms(basis: SplineBasis, Q: np.ndarray, p: np.ndarray, along: np.ndarray) -> tuple[float, int]:
-    """How far the curve strays from the points, and how often it runs against them.
+def _curve_terms(basis: SplineBasis, p: np.ndarray) -> Callable[[np.ndarray], tuple[float, int]]:
+    """``terms(Q)``: how far the curve ``Q`` strays from the points ``p``, and how often it
+    runs against them.
 
     At :data:`_CURVE_SAMPLES` points per span, spread evenly in parameter, the distance to
     the polygon through ``p`` (closed with the curve) less half the polygon's median side
     (the polygon cuts the curve's bends by up to about that much), squared where positive,
     summed and scaled to ``len(p)`` terms; and the number of those points whose tangent is
-    more than 120° from ``along`` (the outline's direction, :func:`_outline_direction`) at
-    the nearest side of the polygon: the curve folds back or loops there.
+    more than 120° from the outline's direction (:func:`_outline_direction`) at the nearest
+    side of the polygon: the curve folds back or loops there.  What depends only on the
+    basis and the points (the basis matrices, the polygon's sides) is computed once.
     """
     N = basis.n_ctrl
     m = _CURVE_SAMPLES * N
     s = np.linspace(0.0, basis.L, m, endpoint=not basis.closed)
-    C = np.stack((Q[:N], Q[N:]), axis=1)
-    c, tangent = basis.basis(s) @ C, basis.basis_derivative(s, 1) @ C
+    B, dB = basis.basis(s), basis.basis_derivative(s, 1)
+    along = _outline_direction(p, basis.closed)
     a = p if basis.closed else p[:-1]
     d = (np.roll(p, -1, axis=0) if basis.closed else p[1:]) - a
     dd = np.maximum(np.sum(d * d, axis=1), 1e-300)
     slack = 0.5 * float(np.median(np.sqrt(dd)))
-    best = np.empty(m)
-    side = np.empty(m, dtype=np.intp)
-    for i in range(0, m, 64):  # in chunks, to bound the memory
-        r = c[i:i + 64, None, :] - a[None, :, :]
-        u = np.clip(np.sum(r * d[None], axis=2) / dd[None], 0.0, 1.0)
-        e = r - u[:, :, None] * d[None]
-        e2 = np.sum(e * e, axis=2)
-        side[i:i + 64] = np.argmin(e2, axis=1)
-        best[i:i + 64] = e2[np.arange(e2.shape[0]), side[i:i + 64]]
-    excess = np.maximum(np.sqrt(best) - slack, 0.0)
-    way = along[side]
-    against = np.sum(tangent * way, axis=1) < -0.5 * np.linalg.norm(tangent, axis=1) * np.linalg.norm(way, axis=1)
-    return float(np.sum(excess * excess) * len(p) / m), int(np.count_nonzero(against))
+
+    def terms(Q: np.ndarray) -> tuple[float, int]:
+        C = np.stack((Q[:N], Q[N:]), axis=1)
+        c, tangent = B @ C, dB @ C
+        best = np.empty(m)
+        side = np.empty(m, dtype=np.intp)
+        for i in range(0, m, 64):  # in chunks, to bound the memory
+            r = c[i:i + 64, None, :] - a[None, :, :]
+            u = np.clip(np.sum(r * d[None], axis=2) / dd[None], 0.0, 1.0)
+            e = r - u[:, :, None] * d[None]
+            e2 = np.sum(e * e, axis=2)
+            side[i:i + 64] = np.argmin(e2, axis=1)
+            best[i:i + 64] = e2[np.arange(e2.shape[0]), side[i:i + 64]]
+        excess = np.maximum(np.sqrt(best) - slack, 0.0)
+        way = along[side]
+        against = (np.sum(tangent * way, axis=1)
+                   < -0.5 * np.linalg.norm(tangent, axis=1) * np.linalg.norm(way, axis=1))
+        return float(np.sum(excess * excess) * len(p) / m), int(np.count_nonzero(against))
+
+    return terms
 
 
 def _outline_direction(p: np.ndarray, closed: bool) -> np.ndarray:
