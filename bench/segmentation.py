@@ -9,7 +9,8 @@ Cases:
   the true mask.
 
 Prints the mean IoU of the mask ``segment_box`` returns per group, and per DAVIS sequence,
-next to the template's own mask (after the B-spline fit of ``draw``) with ``--fit``.
+next to the template's own mask (after the B-spline fit of ``draw``) with ``--fit``; with
+``--grey``, of grey copies of the frames.
 
     python bench/segmentation.py --seeds 1,2,3,4 --footage ../shared/footage
 """
@@ -95,6 +96,8 @@ def main() -> None:
     ap.add_argument("--seeds", default="1,2,3,4")
     ap.add_argument("--footage", type=Path, default=REPO.parent / "shared" / "footage")
     ap.add_argument("--every", type=int, default=5, help="DAVIS: every N-th frame")
+    ap.add_argument("--grey", action="store_true",
+                    help="segment grey copies of the frames (as monochrome benchmark sequences are)")
     ap.add_argument("--fit", action="store_true",
                     help="also score the template draw makes of each mask (12 control points), rasterised")
     args = ap.parse_args()
@@ -107,6 +110,8 @@ def main() -> None:
         cases += list(davis_cases(args.footage, args.every))
     fitted: dict[str, list[float]] = {}
     for name, img, truth, box in cases:
+        if args.grey:
+            img = cv2.cvtColor(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), cv2.COLOR_GRAY2BGR)
         mask = draw.segment_box(img, box)
         groups.setdefault(name, []).append(draw.mask_iou(mask, truth))
         if args.fit:
