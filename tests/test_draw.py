@@ -367,14 +367,20 @@ def _swan_mask() -> np.ndarray:
 def test_fit_template_does_not_take_away_an_end_of_the_object(caplog):
     # The fallback for thin parts opens the mask; on a swan that takes the neck and head,
     # and the template lost the top 60 % of the object.  An opening that costs the object
-    # its extent is refused, and the convex hull is used.
-    outline = draw.mask_outline(_swan_mask()).astype(float)
+    # its extent is refused.  The swan covers little of its convex hull, and the outline
+    # fitted again without folds covers it far better: that fit is taken.
+    mask = _swan_mask()
+    outline = draw.mask_outline(mask).astype(float)
     with caplog.at_level(logging.WARNING, logger="trackcli"):
         t = draw.fit_template(outline, 12)
     curve = dense_polygon(t.Q, t.basis(), 500)
     extent = (curve.max(axis=0) - curve.min(axis=0)) / (outline.max(axis=0) - outline.min(axis=0))
     assert np.all(extent >= draw.LEAK_EXTENT), extent
-    assert "convex hull" in t.source and "convex hull" in caplog.text
+    assert t.source == " (fitted without folds)" and "refitted without folds" in caplog.text
+    size = np.sqrt(cv2.contourArea(outline.astype(np.float32)))
+    assert draw.fit_error(t, outline) <= 0.1 * size
+    hull = cv2.fillConvexPoly(np.zeros_like(mask), cv2.convexHull(outline.astype(np.int32)), 255)
+    assert draw.mask_iou(template_mask(t, mask.shape[::-1]), mask) > draw.mask_iou(hull, mask) + draw.REFIT_GAIN
     # thin strands beside the object, within its extent, are still taken away
     m = np.zeros((300, 400), np.uint8)
     cv2.ellipse(m, ((200, 150), (200, 150), 0), 255, -1)
@@ -396,7 +402,8 @@ def test_the_convex_hull_fallback_does_not_fold():
     cv2.ellipse(m, ((213.5, 176.0), (17.0, 50.0), 0.0), 255, -1)
     outline = draw.canonical_start(draw.mask_outline(m).astype(float))
     t = draw.fit_template(outline, 12)
-    assert "convex hull" in t.source
+    # the hull covers the ellipse about as well as a refit without folds: the hull is taken
+    assert "convex hull" in t.source and "without folds" not in t.source
     assert _runs_against(t.Q, 12, outline) == 0
     assert _curve_to_polygon(t.Q, 12, outline) < 1.5
 
