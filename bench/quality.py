@@ -29,6 +29,10 @@ frame (or from F back to its start); the options combine, and
 the copies are cached in ``--cache``.  They show how far the defaults hold on footage of the
 same kind but not the same make.
 
+With ``--outline`` the template is drawn from the object's true outline on the first frame
+instead (``trackcli draw --mask``): the generator's outline for the synthetic clips, the
+first mask of ``masks/`` for the DAVIS folders; clips without a true outline are left out.
+
 With ``--peers`` the same clips are tracked by OpenCV's CSRT, KCF and MIL from the same box
 (CSRT and KCF need ``opencv-contrib-python-headless``; MIL is in the plain wheel), five times
 per clip in a fresh process, the scores averaged (MIL is random).  Peer results do not depend
@@ -37,7 +41,8 @@ on trackcli and are cached.
 Usage::
 
     python bench/quality.py [--seeds 1,2,3] [--footage DIR] [--peers] [--only NAME ...]
-        [--json FILE] [--grey] [--scale F] [--every K] [--start F] [--reverse] [--runs K] [-- EXTRA TRACK OPTIONS]
+        [--json FILE] [--grey] [--scale F] [--every K] [--start F] [--reverse] [--outline] [--runs K]
+        [-- EXTRA TRACK OPTIONS]
 
 Everything after ``--`` is passed to ``trackcli track`` (e.g. ``-- --particles 1000``).
 ``--runs K`` tracks every clip with seeds 0..K-1 and averages the scores: one run of a particle
@@ -220,13 +225,14 @@ def _lost_flags(csv: Path, frames: np.ndarray) -> np.ndarray:
     return np.array([flag.get(int(k), True) for k in frames], dtype=bool)
 
 
-def run_trackcli_seeds(clip: Clip, work: Path, extra: list[str], runs: int) -> tuple[dict, float]:
+def run_trackcli_seeds(clip: Clip, work: Path, extra: list[str], runs: int,
+                      outline: bool = False) -> tuple[dict, float]:
     """:func:`run_trackcli` with ``--seed 0 .. runs-1``; scores averaged (counts summed)."""
     if runs <= 1:
-        return run_trackcli(clip, work, extra)
+        return run_trackcli(clip, work, extra, outline)
     results, wall = [], 0.0
     for seed in range(runs):
-        res, w = run_trackcli(clip, work, [*extra, "--seed", str(seed)])
+        res, w = run_trackcli(clip, work, [*extra, "--seed", str(seed)], outline)
         if "error" in res:
             return res, w
         results.append(res)
@@ -243,19 +249,58 @@ def mean_scores(results: list[dict]) -> dict:
     return out
 
 
-def run_trackcli(clip: Clip, work: Path, extra: list[str]) -> tuple[dict, float]:
-    """Draw the template from the frame-0 box, track with ``extra`` options, score: ``(scores, wall s)``."""
-    tmpl, error = draw_template(clip, work)
+def run_trackcli(clip: Clip, work: Path, extra: list[str], outline: bool = False) -> tuple[dict, float]:
+    """Draw the template from the frame-0 box (or true outline), track with ``extra`` options,
+    score: ``(scores, wall s)``."""
+    tmpl, error = draw_template(clip, work, outline)
     if error:
         return {"error": error}, 0.0
     return track_and_score(clip, tmpl, work, extra)
 
 
-def draw_template(clip: Clip, work: Path) -> tuple[Path, str | None]:
-    """``trackcli draw --box`` on frame 0 from the ground truth's box: ``(template, error or None)``."""
+def true_mask(clip: Clip) -> np.ndarray | None:
+    """The object's true mask on the clip's first frame (uint8, 0/255), or None when the clip
+    has none: the generator's outline of a synthetic clip, the first of a DAVIS folder's masks."""
+    import cv2
+
+    if clip.kind == "synthetic":
+        from trackcli.io.video import open_video
+        from trackcli.sample_data import load_outline, true_outline
+        from trackcli.sample_data import load_truth as load_sample_truth
+        from trackcli.shapes.draw import polygon_mask
+
+        truth = load_sample_truth(clip.truth)
+        rows = np.flatnonzero((truth.frame == 0) & (truth.object == clip.object_id))
+        if not rows.size:
+            return None
+        outline = true_outline(truth.row(int(rows[0])), load_outline(clip.truth.with_name(
+            clip.truth.name.replace(".truth.csv", ".outline.json"))))
+        with open_video(clip.path) as video:
+            frame = video.read(0).image
+        return polygon_mask(outline, (frame.shape[1], frame.shape[0]))
+    masks = sorted((clip.path / "masks").glob("*.png")) if (clip.path / "masks").is_dir() else []
+    if not masks:
+        return None
+    m = cv2.imread(str(masks[0]), cv2.IMREAD_GRAYSCALE)
+    return None if m is None else np.where(m > 0, 255, 0).astype(np.uint8)
+
+
+def draw_template(clip: Clip, work: Path, outline: bool = False) -> tuple[Path, str | None]:
+    """``trackcli draw --box`` on frame 0 from the ground truth's box (with ``outline``:
+    ``draw --mask`` from the true outline): ``(template, error or None)``."""
+    import cv2
+
     tmpl = work / f"{clip.name}.template.yaml"
-    box = ",".join(f"{v:.2f}" for v in clip.box)
-    r = _cli("draw", str(clip.path), "--box", box, "-o", str(tmpl), "--preview", str(work / f"{clip.name}.png"))
+    if outline:
+        mask = true_mask(clip)
+        if mask is None:
+            return tmpl, "no true outline"
+        mask_png = work / f"{clip.name}.truemask.png"
+        cv2.imwrite(str(mask_png), mask)
+        how = ["--mask", str(mask_png)]
+    else:
+        how = ["--box", ",".join(f"{v:.2f}" for v in clip.box)]
+    r = _cli("draw", str(clip.path), *how, "-o", str(tmpl), "--preview", str(work / f"{clip.name}.png"))
     if r.returncode:
         return tmpl, "draw: " + r.stderr.strip().splitlines()[-1]
     return tmpl, None
@@ -405,6 +450,9 @@ def main() -> None:
     ap.add_argument("--start", type=float, default=0.0,
                     help="track the clips from the first frame in view at or after this share of their length "
                          "(e.g. 0.5: from the middle; with --reverse, back from there)")
+    ap.add_argument("--outline", action="store_true",
+                    help="draw the templates from the true outline of the first frame (draw --mask) instead of its box; "
+                         "clips without one (no masks/) are left out")
     ap.add_argument("--runs", type=int, default=1,
                     help="track every clip with --seed 0..RUNS-1 and average the scores (frame counts are summed)")
     args = ap.parse_args(argv)
@@ -416,8 +464,12 @@ def main() -> None:
         clips = [c for c in clips if any(c.name.startswith(o) for o in args.only)]
     if not (0.05 <= args.scale <= 4) or args.every < 1 or not (0.0 <= args.start < 1.0):
         ap.error("--scale must be in [0.05, 4], --every at least 1 and --start in [0, 1)")
+    if args.outline and (args.grey or args.scale != 1.0 or args.every != 1 or args.reverse or args.start):
+        ap.error("--outline goes with the clips as they are (not with --grey, --scale, --every, --reverse, --start)")
     clips = [variant_copy(c, args.cache, grey=args.grey, scale=args.scale, every=args.every, reverse=args.reverse,
                           start=args.start) for c in clips]
+    if args.outline:
+        clips = [c for c in clips if c.kind == "synthetic" or (c.path / "masks").is_dir()]
     peers = peer_results(clips, args.cache) if args.peers else {}
     work = args.keep or Path(tempfile.mkdtemp(prefix="quality-"))
     work.mkdir(parents=True, exist_ok=True)
@@ -427,7 +479,7 @@ def main() -> None:
     print(head + peer_head)
     results = {}
     for clip in clips:
-        res, wall = run_trackcli_seeds(clip, work, extra, args.runs)
+        res, wall = run_trackcli_seeds(clip, work, extra, args.runs, args.outline)
         results[clip.name] = res
         if "error" in res:
             print(f"{clip.name:<22} {res['error']}")
