@@ -541,3 +541,31 @@ def test_a_bust_keeps_its_head():
         mp.setattr(draw, "BOX_SPAN", 1.01)
         runs.clear()
         assert draw.mask_iou(draw.segment_box(img, box), shirt) == 1.0
+
+
+def _hand_mask() -> np.ndarray:
+    """A palm and five fingers 22 px wide, spread."""
+    m = np.zeros((400, 400), np.uint8)
+    cv2.ellipse(m, ((200, 260), (130, 150), 0), 255, -1)
+    for angle, length in ((-60, 110), (-25, 150), (0, 160), (20, 150), (45, 120)):
+        a = np.deg2rad(angle - 90)
+        start = (int(200 + 40 * np.cos(a)), int(230 + 40 * np.sin(a)))
+        end = (int(200 + (40 + length) * np.cos(a)), int(230 + (40 + length) * np.sin(a)))
+        cv2.line(m, start, end, 255, 22)
+    return m
+
+
+def test_a_hand_is_its_hull_with_few_control_points_and_traced_with_enough():
+    # 12 control points cannot follow five fingers, not even refitted without folds: the hull.
+    # With 20 the plain fit still loops far off the outline, but the refit without folds
+    # traces the fingers, and it covers the hand far better than the hull does.
+    mask = _hand_mask()
+    outline = draw.mask_outline(mask).astype(float)
+    few = draw.fit_template(outline, 12)
+    assert "convex hull" in few.source
+    enough = draw.fit_template(outline, 20)
+    assert "fitted without folds" in enough.source
+    iou_few = draw.mask_iou(template_mask(few, (400, 400)), mask)
+    iou_enough = draw.mask_iou(template_mask(enough, (400, 400)), mask)
+    assert iou_few < 0.6 and iou_enough > 0.88
+    assert draw.fit_error(enough, outline) <= 0.1 * np.sqrt(cv2.contourArea(outline.astype(np.float32)))
