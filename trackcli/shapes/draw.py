@@ -503,8 +503,8 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
                     log.warning("the outline has thin parts the %d-control-point fit strayed on (%.0f px off); "
                                 "they were removed (%.0f px)", n_ctrl, err, err_s)
                     return smooth_t
-        hull = cv2.convexHull(outline.astype(np.float32))[:, 0, :].astype(float)
         if err > tol:
+            hull = cv2.convexHull(outline.astype(np.float32))[:, 0, :].astype(float)
             # The refinement can also fold the curve into a loop where the outline turns
             # sharply (a bust's neck: 12 control points ended 19 px off the outline, with or
             # without the opening).  Fit again refining without folds (strict), on the outline
