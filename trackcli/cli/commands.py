@@ -183,6 +183,11 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
     and, with --rrd, a recording.  With --parts the template is also a structure template
     for --tracker coupled: each part's box and image patch are kept.
 
+    When the fit strays from the outline (by more than a tenth of the object's size), draw
+    falls back and says so, in a warning and in the template's `source`: thin parts opened
+    away, a refit that may not fold, or the outline's convex hull (more control points,
+    --n-ctrl, follow more detail).
+
     \b
     Examples:
       trackcli draw sample_data/train.mp4 --box 200,90,90,150 -o head.yaml
