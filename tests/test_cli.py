@@ -285,7 +285,7 @@ def test_draw_box_on_a_later_frame_finds_the_object(tmp_path, ellipse_clip):
     png = tmp_path / "preview-of-box.png"
     run(["draw", ellipse_clip, "--frame", k, "--box", box, "--preview", png, "-o", out], 0)
     t = check_outputs(out, png, ellipse_clip, k)
-    assert t.source.startswith(f"box {box}")
+    assert t.source.startswith(f"box {box} (GrabCut)")
     assert region_iou(t, k) >= 0.9
 
 

@@ -261,6 +261,12 @@ def test_box_without_an_object_falls_back_to_the_inscribed_ellipse(caplog):
     assert "no clear object" in caplog.text
     inscribed = draw.polygon_mask(draw.ellipse_outline(70.0, 55.0, 30.0, 25.0), (160, 120))
     assert draw.mask_iou(mask, inscribed) >= 0.95
+    # and says so, for the template's source
+    again, method = draw.segment_box(img, (40.0, 30.0, 60.0, 50.0), with_method=True)
+    np.testing.assert_array_equal(again, mask)
+    assert method == "inscribed ellipse"
+    img, outline = dark_ellipse_image(np.random.default_rng(6))
+    assert draw.segment_box(img, grown_box(outline, 0.15), with_method=True)[1] == "GrabCut"
 
 
 def swan_scene(rng: np.random.Generator):

@@ -237,8 +237,9 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
         source = f"ellipse {ellipse}"
     elif box:
         b = draw.parse_numbers(box, 4, "--box")
-        outline = draw.mask_outline(draw.segment_box(frame.image, tuple(b)))
-        source = f"box {box} (GrabCut)"
+        mask_image, method = draw.segment_box(frame.image, tuple(b), with_method=True)
+        outline = draw.mask_outline(mask_image)
+        source = f"box {box} ({method})"
     else:
         outline = draw.mask_outline(draw.load_mask(mask, size))
         source = f"mask {mask}"

@@ -188,8 +188,11 @@ LEAK_EXTENT = 0.9
 REFIT_GAIN = 0.1
 
 
-def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *, iterations: int = 5) -> np.ndarray:
-    """Segment the object inside ``box = (x, y, w, h)`` with GrabCut; returns a uint8 mask.
+def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *, iterations: int = 5,
+                with_method: bool = False):
+    """Segment the object inside ``box = (x, y, w, h)`` with GrabCut; returns a uint8 mask
+    (with ``with_method``, ``(mask, method)``: ``"GrabCut"``, or ``"inscribed ellipse"`` when
+    GrabCut found no clear object).
 
     Everything outside the box is background.  GrabCut runs on the whole frame, and on the
     box with a ring of :data:`SEGMENT_MARGIN` times its size around it, where the background
@@ -234,14 +237,17 @@ def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *
         # the box outside the frame) give it that background
         p = EDGE_PAD + int(math.ceil(max(0.0, -x, -y, x + w - w_img, y + h - h_img)))
         big = cv2.copyMakeBorder(image_bgr, p, p, p, p, cv2.BORDER_REPLICATE)
-        mask = _segment(big, (x + p, y + p, w, h), (x0 + p, y0 + p, x1 - x0, y1 - y0), iterations)
-        return np.ascontiguousarray(mask[p:-p, p:-p])
-    return _segment(image_bgr, box, (x0, y0, x1 - x0, y1 - y0), iterations)
+        mask, method = _segment(big, (x + p, y + p, w, h), (x0 + p, y0 + p, x1 - x0, y1 - y0), iterations)
+        mask = np.ascontiguousarray(mask[p:-p, p:-p])
+    else:
+        mask, method = _segment(image_bgr, box, (x0, y0, x1 - x0, y1 - y0), iterations)
+    return (mask, method) if with_method else mask
 
 
 def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect: tuple[int, int, int, int],
-             iterations: int) -> np.ndarray:
-    """:func:`segment_box` of a checked box, ``rect`` its whole-pixel part inside the frame."""
+             iterations: int) -> tuple[np.ndarray, str]:
+    """:func:`segment_box` of a checked box, ``rect`` its whole-pixel part inside the frame:
+    ``(mask, method)``."""
     import cv2
 
     h_img, w_img = image_bgr.shape[:2]
@@ -268,7 +274,7 @@ def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect
         fallback = np.zeros((h_img, w_img), np.uint8)
         box_rr = (((x0 + x1) / 2.0, (y0 + y1) / 2.0), (float(x1 - x0), float(y1 - y0)), 0.0)
         cv2.ellipse(fallback, box_rr, 255, -1)
-        return fallback
+        return fallback, "inscribed ellipse"
     lab = cv2.cvtColor(cv2.GaussianBlur(image_bgr, (5, 5), 0), cv2.COLOR_BGR2Lab)
     candidates += [m for m in (_unleak(image_bgr, lab, c, rect, iterations) for c in list(candidates)) if m is not None]
     # the box was drawn around the object: a mask that spans much less of it has lost a part
@@ -280,7 +286,7 @@ def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect
     # the first (the whole-frame mask, the older default) stays unless another one is clearly better
     separation = [colour_separation(image_bgr, c, box) for c in candidates]
     best = int(np.argmax(separation))
-    return candidates[best] if separation[best] > separation[0] + SEPARATION_MARGIN else candidates[0]
+    return (candidates[best] if separation[best] > separation[0] + SEPARATION_MARGIN else candidates[0]), "GrabCut"
 
 
 def colour_separation(image_bgr: np.ndarray, mask: np.ndarray, box: tuple[float, float, float, float], *,
