@@ -474,94 +474,75 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
     if len(outline) < n_ctrl:
         # too few points to pin every control point: resample the polygon densely first
         outline = _resample_polygon(outline, max(4 * n_ctrl, 64), closed)
-    Q = fit(outline, n_ctrl, degree=degree, closed=closed)
-    cp = np.column_stack([Q[:n_ctrl], Q[n_ctrl:]])
-    template = Template(cp, degree=degree, closed=closed, clip=clip, frame=frame, frame_size=frame_size, source=source)
-    if closed and len(outline) >= 3:
-        import cv2
+    def make(Q: np.ndarray, note: str = "") -> Template:
+        return Template(np.column_stack([Q[:n_ctrl], Q[n_ctrl:]]), degree=degree, closed=closed, clip=clip,
+                        frame=frame, frame_size=frame_size, source=source + note)
 
-        size = float(np.sqrt(abs(cv2.contourArea(outline.astype(np.float32)))))
-        err = fit_error(template, outline)
-        tol = max(3.0, 0.1 * size)
-        if err > tol:
-            # Thin parts (a strand of reflection, a tail) can throw the least-squares fit far
-            # off the outline: remove them with an opening about 1/8 of the object's size and
-            # fit again.
-            lo = outline.min(axis=0) - 2
-            hi = outline.max(axis=0) + 2
-            shape = (int(hi[0] - lo[0]) + 1, int(hi[1] - lo[1]) + 1)
-            m = polygon_mask(outline - lo, shape)
-            k = max(3, int(round(size / 8)) | 1)
-            m = cv2.morphologyEx(m, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
-            opened = None
-            if m.any():
-                opened = canonical_start(mask_outline(m) + lo)
-                Q = fit(opened, n_ctrl, degree=degree, closed=True)
-                cp = np.column_stack([Q[:n_ctrl], Q[n_ctrl:]])
-                smooth_t = Template(cp, degree=degree, closed=closed, clip=clip, frame=frame, frame_size=frame_size,
-                                    source=source + " (thin parts removed)")
-                err_s = fit_error(smooth_t, opened)
-                # the parts taken away must be thin ones beside the object (a strand of
-                # reflection), not one of its ends (a swan's neck and head): the object drawn
-                # keeps its extent, as when a leak is taken out (LEAK_EXTENT)
-                extent = np.ptp(opened, axis=0) / np.maximum(np.ptp(outline, axis=0), 1.0)
-                if err_s <= tol and np.all(extent >= LEAK_EXTENT):
-                    log.warning("the outline has thin parts the %d-control-point fit strayed on (%.0f px off); "
-                                "they were removed (%.0f px)", n_ctrl, err, err_s)
-                    return smooth_t
-        if err > tol:
-            hull = cv2.convexHull(outline.astype(np.float32))[:, 0, :].astype(float)
-            # The refinement can also fold the curve into a loop where the outline turns
-            # sharply (a bust's neck: 12 control points ended 19 px off the outline, with or
-            # without the opening).  Fit again refining without folds (strict), on the outline
-            # and on the opened one when it kept the object's extent; the closer fit within the
-            # tolerance is kept if it covers the object clearly better than the convex hull
-            # (below), which smooths over a mask's errors but takes in background (beside a
-            # bust's neck, under a swan's).
-            tries = [(outline, " (fitted without folds)")]
-            if opened is not None and np.all(np.ptp(opened, axis=0) >= LEAK_EXTENT * np.ptp(outline, axis=0)):
-                tries.append((opened, " (thin parts removed, fitted without folds)"))
-            best = None
-            for pts, note in tries:
-                Q = fit(_resample_polygon(pts, max(16 * n_ctrl, 192), True), n_ctrl, degree=degree, closed=True,
-                        strict=True)
-                cp = np.column_stack([Q[:n_ctrl], Q[n_ctrl:]])
-                t = Template(cp, degree=degree, closed=closed, clip=clip, frame=frame, frame_size=frame_size,
-                             source=source + note)
-                e = fit_error(t, pts)
-                if e <= tol and (best is None or e < best[0]):
-                    best = (e, t)
-            if best is not None and _cover(best[1], outline) >= _cover(hull, outline) + REFIT_GAIN:
-                log.warning("the %d-control-point fit folded on the outline (%.0f px off it); "
-                            "refitted without folds (%.0f px)", n_ctrl, err, best[0])
-                return best[1]
-        if err > tol:
-            # A deep, narrow concavity (a swan's neck, an arm held out) that n_ctrl control
-            # points cannot follow can also throw the fit off; the convex hull is smooth,
-            # always fits, and is what a contour of this many control points can track.
-            hull = _resample_polygon(canonical_start(hull), max(8 * n_ctrl, 128), True)
-            # strict: without it the refinement folded the curve back along the hull's straight
-            # sides (crossing's pedestrian, 30 runs: P@20 0.80 with the folded template, 0.97)
-            Q = fit(hull, n_ctrl, degree=degree, closed=True, strict=True)
-            cp = np.column_stack([Q[:n_ctrl], Q[n_ctrl:]])
-            hull_t = Template(cp, degree=degree, closed=closed, clip=clip, frame=frame, frame_size=frame_size,
-                              source=source + " (convex hull)")
-            log.warning("the outline has detail %d control points cannot follow (fit %.0f px off it); "
-                        "using its convex hull (more control points: --n-ctrl)", n_ctrl, err)
-            template = hull_t
-    return template
+    template = make(fit(outline, n_ctrl, degree=degree, closed=closed))
+    if not (closed and len(outline) >= 3):
+        return template
+    import cv2
 
-
-def _cover(shape, outline: np.ndarray) -> float:
-    """IoU of the region inside ``shape`` (a Template's curve or a closed polygon) with the
-    region inside the closed polygon ``outline``, rasterised at 1 px."""
+    from trackcli.run.evaluate import polygon_iou
     from trackcli.shapes.spline import dense_polygon
 
-    poly = dense_polygon(shape.Q, shape.basis()) if hasattr(shape, "Q") else np.asarray(shape, float)
-    lo = np.minimum(poly.min(axis=0), outline.min(axis=0)) - 2
-    hi = np.maximum(poly.max(axis=0), outline.max(axis=0)) + 2
-    size = (int(hi[0] - lo[0]) + 1, int(hi[1] - lo[1]) + 1)
-    return mask_iou(polygon_mask(poly - lo, size), polygon_mask(outline - lo, size))
+    size = float(np.sqrt(abs(cv2.contourArea(outline.astype(np.float32)))))
+    err = fit_error(template, outline)
+    tol = max(3.0, 0.1 * size)
+    if err <= tol:
+        return template
+    # Thin parts (a strand of reflection, a tail) can throw the least-squares fit far off the
+    # outline: remove them with an opening about 1/8 of the object's size and fit again.
+    lo = outline.min(axis=0) - 2
+    hi = outline.max(axis=0) + 2
+    shape = (int(hi[0] - lo[0]) + 1, int(hi[1] - lo[1]) + 1)
+    m = polygon_mask(outline - lo, shape)
+    k = max(3, int(round(size / 8)) | 1)
+    m = cv2.morphologyEx(m, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    opened = canonical_start(mask_outline(m) + lo) if m.any() else None
+    # the parts taken away must be thin ones beside the object (a strand of reflection), not
+    # one of its ends (a swan's neck and head): the object drawn keeps its extent, as when a
+    # leak is taken out (LEAK_EXTENT)
+    keeps_extent = opened is not None and bool(np.all(
+        np.ptp(opened, axis=0) / np.maximum(np.ptp(outline, axis=0), 1.0) >= LEAK_EXTENT))
+    if opened is not None:
+        smooth_t = make(fit(opened, n_ctrl, degree=degree, closed=True), " (thin parts removed)")
+        err_s = fit_error(smooth_t, opened)
+        if err_s <= tol and keeps_extent:
+            log.warning("the outline has thin parts the %d-control-point fit strayed on (%.0f px off); "
+                        "they were removed (%.0f px)", n_ctrl, err, err_s)
+            return smooth_t
+    # The refinement can also fold the curve into a loop where the outline turns sharply (a
+    # bust's neck: 12 control points ended 19 px off the outline, with or without the opening).
+    # Fit again refining without folds (strict), on the outline and on the opened one when it
+    # kept the object's extent; the closer fit within the tolerance is kept if it covers the
+    # object clearly better than the convex hull (below), which smooths over a mask's errors
+    # but takes in background (beside a bust's neck, under a swan's).
+    hull = cv2.convexHull(outline.astype(np.float32))[:, 0, :].astype(float)
+    tries = [(outline, " (fitted without folds)")]
+    if keeps_extent:
+        tries.append((opened, " (thin parts removed, fitted without folds)"))
+    best = None
+    for pts, note in tries:
+        t = make(fit(_resample_polygon(pts, max(16 * n_ctrl, 192), True), n_ctrl, degree=degree, closed=True,
+                     strict=True), note)
+        e = fit_error(t, pts)
+        if e <= tol and (best is None or e < best[0]):
+            best = (e, t)
+    if best is not None and (polygon_iou(dense_polygon(best[1].Q, best[1].basis()), outline)
+                             >= polygon_iou(hull, outline) + REFIT_GAIN):
+        log.warning("the %d-control-point fit folded on the outline (%.0f px off it); "
+                    "refitted without folds (%.0f px)", n_ctrl, err, best[0])
+        return best[1]
+    # A deep, narrow concavity (a swan's neck, an arm held out) that n_ctrl control points
+    # cannot follow can also throw the fit off; the convex hull is smooth, always fits, and is
+    # what a contour of this many control points can track.
+    hull = _resample_polygon(canonical_start(hull), max(8 * n_ctrl, 128), True)
+    # strict: without it the refinement folded the curve back along the hull's straight sides
+    # (crossing's pedestrian, 30 runs: P@20 0.80 with the folded template, 0.97)
+    log.warning("the outline has detail %d control points cannot follow (fit %.0f px off it); "
+                "using its convex hull (more control points: --n-ctrl)", n_ctrl, err)
+    return make(fit(hull, n_ctrl, degree=degree, closed=True, strict=True), " (convex hull)")
 
 
 def fit_error(template, outline: np.ndarray) -> float:
