@@ -182,6 +182,10 @@ LEAK_STEP = 3
 LEAK_JUMP = 6
 #: background leaking in: the mask without the leak must keep this share of the width and height
 LEAK_EXTENT = 0.9
+#: on a grey frame GrabCut also sees texture: the grey level with its local mean and standard
+#: deviation over a Gaussian window of this sigma (px), the deviation scaled by TEXTURE_GAIN
+TEXTURE_SIGMA = 3.0
+TEXTURE_GAIN = 4.0
 #: a fit that strayed from the outline is replaced by a fit without folds when that covers the
 #: object (IoU with the outline) by at least this much more than the convex hull does; else
 #: the hull is taken
@@ -250,21 +254,29 @@ def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect
     ``(mask, method)``."""
     import cv2
 
+    from trackcli.observe.discriminant import is_grey
+
     h_img, w_img = image_bgr.shape[:2]
     x, y, w, h = box
     x0, y0 = rect[:2]
     x1, y1 = x0 + rect[2], y0 + rect[3]
-    candidates = [_grabcut(image_bgr, box, iterations)]
     cx0 = int(max(0.0, math.floor(x - SEGMENT_MARGIN * w)))
     cy0 = int(max(0.0, math.floor(y - SEGMENT_MARGIN * h)))
     cx1 = int(min(float(w_img), math.ceil(x + w + SEGMENT_MARGIN * w)))
     cy1 = int(min(float(h_img), math.ceil(y + h + SEGMENT_MARGIN * h)))
-    if (cx0, cy0, cx1, cy1) != (0, 0, w_img, h_img):
-        sub = _grabcut(np.ascontiguousarray(image_bgr[cy0:cy1, cx0:cx1]), (x - cx0, y - cy0, w, h), iterations)
-        if sub is not None:
-            local = np.zeros((h_img, w_img), np.uint8)
-            local[cy0:cy1, cx0:cx1] = sub
-            candidates.append(local)
+    grey = is_grey(image_bgr)
+    # a grey frame gives GrabCut the grey level only, and an object as dark as its surroundings
+    # (a bust on a dark patterned wall) is lost; its texture still tells them apart
+    texture = texture_image(image_bgr) if grey else None
+    candidates: list[np.ndarray | None] = []
+    for image in (image_bgr,) if texture is None else (image_bgr, texture):
+        candidates.append(_grabcut(image, box, iterations))
+        if (cx0, cy0, cx1, cy1) != (0, 0, w_img, h_img):
+            sub = _grabcut(np.ascontiguousarray(image[cy0:cy1, cx0:cx1]), (x - cx0, y - cy0, w, h), iterations)
+            if sub is not None:
+                local = np.zeros((h_img, w_img), np.uint8)
+                local[cy0:cy1, cx0:cx1] = sub
+                candidates.append(local)
     candidates = [c for c in candidates if c is not None]
     if not candidates:
         # GrabCut finds nothing convincing (small or low-contrast objects): the ellipse
@@ -284,7 +296,8 @@ def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect
     if any(sp >= BOX_SPAN for sp in spans):
         candidates = [c for c, sp in zip(candidates, spans) if sp >= BOX_SPAN]
     # the first (the whole-frame mask, the older default) stays unless another one is clearly better
-    separation = [colour_separation(image_bgr, c, box) for c in candidates]
+    separation = [texture_separation(texture, c, box) if grey else colour_separation(image_bgr, c, box)
+                  for c in candidates]
     best = int(np.argmax(separation))
     return (candidates[best] if separation[best] > separation[0] + SEPARATION_MARGIN else candidates[0]), "GrabCut"
 
@@ -299,17 +312,52 @@ def colour_separation(image_bgr: np.ndarray, mask: np.ndarray, box: tuple[float,
     """
     import cv2
 
+    window = _near_box(mask.shape, box, margin)
+    hsv = cv2.cvtColor(np.ascontiguousarray(image_bgr[window]), cv2.COLOR_BGR2HSV)
+    return _separation(hsv, (0, 1), (0, 180, 0, 256), mask[window])
+
+
+def _near_box(shape: tuple[int, ...], box: tuple[float, float, float, float], margin: float) -> tuple[slice, slice]:
+    """The rows and columns of an image of ``shape`` within ``box`` grown by ``margin`` of its size."""
     x, y, w, h = box
-    h_img, w_img = mask.shape
+    h_img, w_img = shape[:2]
     X0, Y0 = int(max(0, x - margin * w)), int(max(0, y - margin * h))
     X1, Y1 = int(min(w_img, x + w + margin * w)), int(min(h_img, y + h + margin * h))
-    hsv = cv2.cvtColor(np.ascontiguousarray(image_bgr[Y0:Y1, X0:X1]), cv2.COLOR_BGR2HSV)
-    inside = (mask[Y0:Y1, X0:X1] > 0).astype(np.uint8)
+    return slice(Y0, Y1), slice(X0, X1)
+
+
+def _separation(image: np.ndarray, channels: tuple[int, int], ranges: tuple[int, int, int, int],
+                mask: np.ndarray) -> float:
+    """``1 - BC`` of the 16×16-bin histograms of two ``channels`` of ``image`` inside and
+    outside ``mask`` (same size)."""
+    import cv2
+
+    inside = (mask > 0).astype(np.uint8)
     hists = []
     for m in (inside, 1 - inside):
-        hist = cv2.calcHist([hsv], [0, 1], m, [16, 16], [0, 180, 0, 256]).ravel()
+        hist = cv2.calcHist([np.ascontiguousarray(image)], list(channels), m, [16, 16], list(ranges)).ravel()
         hists.append(hist / max(float(hist.sum()), 1.0))
     return float(1.0 - np.sqrt(hists[0] * hists[1]).sum())
+
+
+def texture_image(image_bgr: np.ndarray) -> np.ndarray:
+    """A grey frame as three channels: the grey level, its local mean and its local standard
+    deviation times :data:`TEXTURE_GAIN` (Gaussian window of sigma :data:`TEXTURE_SIGMA`), uint8."""
+    import cv2
+
+    g = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2GRAY).astype(np.float32)
+    mean = cv2.GaussianBlur(g, (0, 0), TEXTURE_SIGMA)
+    var = cv2.GaussianBlur(g * g, (0, 0), TEXTURE_SIGMA) - mean * mean
+    sd = np.sqrt(np.maximum(var, 0.0)) * TEXTURE_GAIN
+    return np.clip(np.dstack([g, mean, sd]) + 0.5, 0, 255).astype(np.uint8)
+
+
+def texture_separation(texture: np.ndarray, mask: np.ndarray, box: tuple[float, float, float, float], *,
+                       margin: float = 0.25) -> float:
+    """:func:`colour_separation` for a grey frame, from its :func:`texture_image`: ``1 - BC``
+    of the histograms of grey level and local standard deviation (16×16 bins)."""
+    window = _near_box(mask.shape, box, margin)
+    return _separation(texture[window], (0, 2), (0, 256, 0, 256), mask[window])
 
 
 def _grabcut(image_bgr: np.ndarray, box: tuple[float, float, float, float], iterations: int) -> np.ndarray | None:
