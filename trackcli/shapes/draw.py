@@ -8,7 +8,8 @@ squares (:func:`trackcli.shapes.spline.fit`).
 - ``--ellipse cx,cy,a,b[,angle]``: the polygon is sampled from the ellipse (angle in degrees,
   clockwise on screen since ``y`` points down).
 - ``--box x,y,w,h``: the object inside the box is segmented with GrabCut (OpenCV), seeded by
-  the box (outside = background), and the outline of the largest region is traced.
+  the box (outside = background; on a grey frame with its local texture too), and the outline
+  of the largest region is traced.
 - ``--mask FILE``: a binary image (non-zero = object); the outline of its largest region.
 """
 
@@ -221,6 +222,10 @@ def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *
     lift the cluttered clip from 0.912 to 0.919 (its worst from 0.69 to 0.81) and the
     three-heads walker from 0.959 to 0.974 with tight boxes (worst 0.74 to 0.97) and from
     0.938 to 0.961 with loose ones; DAVIS stays at 0.768.
+    On a grey frame (:func:`trackcli.observe.discriminant.is_grey`) GrabCut also runs, on the
+    whole frame and on the box's surroundings, on :func:`texture_image`, and the choice is by
+    :func:`texture_separation`: on grey copies of the frames (seeds 1, ..., 8) the cluttered
+    clip's mean IoU goes from 0.60 to 0.87, DAVIS from 0.51 to 0.53.
     Each mask is cleaned:
     small specks removed by a morphological opening, holes filled, the largest region kept.
     """
