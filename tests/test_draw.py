@@ -561,7 +561,7 @@ def test_a_bust_keeps_its_head():
     well its colours separate: on seed 16 of the cluttered clip the whole-frame GrabCut kept the
     bust's shirt only (IoU 0.69, colour separation 0.86 against 0.73 for the whole bust)."""
     h, w = 120, 160
-    img = np.full((h, w, 3), 128, np.uint8)
+    img = np.full((h, w, 3), (90, 120, 150), np.uint8)  # a colour frame (a grey one has texture runs too)
     box = (40.0, 20.0, 60.0, 80.0)
     shirt = np.zeros((h, w), np.uint8)
     shirt[60:100, 40:100] = 255  # the lower half of the box
