@@ -269,10 +269,9 @@ def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect
     cy0 = int(max(0.0, math.floor(y - SEGMENT_MARGIN * h)))
     cx1 = int(min(float(w_img), math.ceil(x + w + SEGMENT_MARGIN * w)))
     cy1 = int(min(float(h_img), math.ceil(y + h + SEGMENT_MARGIN * h)))
-    grey = is_grey(image_bgr)
     # a grey frame gives GrabCut the grey level only, and an object as dark as its surroundings
     # (a bust on a dark patterned wall) is lost; its texture still tells them apart
-    texture = texture_image(image_bgr) if grey else None
+    texture = texture_image(image_bgr) if is_grey(image_bgr) else None
     candidates: list[np.ndarray | None] = []
     for image in (image_bgr,) if texture is None else (image_bgr, texture):
         candidates.append(_grabcut(image, box, iterations))
@@ -301,7 +300,7 @@ def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect
     if any(sp >= BOX_SPAN for sp in spans):
         candidates = [c for c, sp in zip(candidates, spans) if sp >= BOX_SPAN]
     # the first (the whole-frame mask, the older default) stays unless another one is clearly better
-    separation = [texture_separation(texture, c, box) if grey else colour_separation(image_bgr, c, box)
+    separation = [colour_separation(image_bgr, c, box) if texture is None else texture_separation(texture, c, box)
                   for c in candidates]
     best = int(np.argmax(separation))
     return (candidates[best] if separation[best] > separation[0] + SEPARATION_MARGIN else candidates[0]), "GrabCut"
@@ -337,10 +336,11 @@ def _separation(image: np.ndarray, channels: tuple[int, int], ranges: tuple[int,
     outside ``mask`` (same size)."""
     import cv2
 
+    image = np.ascontiguousarray(image)
     inside = (mask > 0).astype(np.uint8)
     hists = []
     for m in (inside, 1 - inside):
-        hist = cv2.calcHist([np.ascontiguousarray(image)], list(channels), m, [16, 16], list(ranges)).ravel()
+        hist = cv2.calcHist([image], list(channels), m, [16, 16], list(ranges)).ravel()
         hists.append(hist / max(float(hist.sum()), 1.0))
     return float(1.0 - np.sqrt(hists[0] * hists[1]).sum())
 
