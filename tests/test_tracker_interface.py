@@ -81,3 +81,48 @@ def test_a_new_tracker_runs_through_the_loop_into_the_csv_and_the_recording(elli
     paths = entity_paths(tmp_path / "t.rrd")
     assert "series/extra/count" in paths and "video/counting" in paths
     assert len(read_column(tmp_path / "t.rrd", "video/counting", "Points2D:positions")) == n
+
+
+@pytest.mark.parametrize("name", ["condensation", "kalman"])
+def test_images_prepared_while_decoding_give_the_same_track(tmp_path, name):
+    """`track` makes each frame's feature image and colour map in the thread that decodes
+    ahead (Tracker.prepare); the track must be the one of images made in the tracking thread."""
+    import threading
+
+    import cv2
+    from conftest import CLIP_SIZE, ellipse_frame
+
+    clip = tmp_path / "ellipse.avi"
+    rng = np.random.default_rng(5)
+    writer = cv2.VideoWriter(str(clip), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, CLIP_SIZE)
+    for k in range(24):
+        writer.write(ellipse_frame(rng, k))
+    writer.release()
+    settings = Settings()
+    space = _space()
+    prepared: list[tuple[str, bool]] = []
+
+    def run(out, prepare_ahead: bool):
+        with open_video(clip) as video:
+            dyn = handset_dynamics(space, settings.dynamics, 1.0 / video.fps)
+            tracker = tracker_class(name)(space, dyn, settings, np.random.default_rng(3), X0=None)
+
+            def prepare(frame):
+                data = tracker.prepare(frame)
+                prepared.append((threading.current_thread().name, data.colour is not None))
+                return data
+
+            # with the measurement given, the loop makes the feature image itself and no colour
+            # map, which each step then makes from the frame
+            make = (lambda frames: run_tracker(tracker, frames)) if prepare_ahead else \
+                (lambda frames: run_tracker(tracker, frames, settings.measurement))
+            run_clip(video, make, space, tracker=name, csv_path=out, rrd_path=None, params={},
+                     prepare=prepare if prepare_ahead else None)
+
+    run(tmp_path / "ahead.csv", True)
+    run(tmp_path / "in_step.csv", False)
+    # after the first frame, whose step learns the colours, the frames came with their colour map
+    # made in the decoding thread (at most the queue's few frames decoded before that did not)
+    assert {t for t, _ in prepared} == {"trackcli-decode"}
+    assert sum(c for _, c in prepared) >= 24 - 6
+    assert (tmp_path / "ahead.csv").read_bytes() == (tmp_path / "in_step.csv").read_bytes()

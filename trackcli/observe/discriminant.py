@@ -304,9 +304,11 @@ def learn_appearance(frame_bgr: np.ndarray, fimg: np.ndarray, points: np.ndarray
                       grey=grey)
 
 
-def evidence(app: Appearance, frame_bgr: np.ndarray, fimg: np.ndarray, centre: np.ndarray, threshold: float) -> FrameEvidence:
-    """The per-frame images of the observation model (one back-projection, one density)."""
-    return FrameEvidence(fimg=_as_image(fimg), cmap=app.colour_map(frame_bgr),
+def evidence(app: Appearance, frame_bgr: np.ndarray, fimg: np.ndarray, centre: np.ndarray, threshold: float, *,
+             cmap: np.ndarray | None = None) -> FrameEvidence:
+    """The per-frame images of the observation model (one back-projection, one density);
+    ``cmap``: the frame's :meth:`Appearance.colour_map` when already made."""
+    return FrameEvidence(fimg=_as_image(fimg), cmap=app.colour_map(frame_bgr) if cmap is None else cmap,
                          density=feature_density(fimg, centre, app.size, threshold))
 
 

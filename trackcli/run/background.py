@@ -19,14 +19,19 @@ class DecodeAhead:
 
     Decoding (OpenCV releases the GIL while it decodes) overlaps with tracking; at most
     ``depth`` decoded frames wait in the queue, so memory does not grow with the clip.
-    ``decode_seconds`` is the decoding time, ``wait_seconds`` the time the consumer spent
-    waiting for a frame.  :meth:`close` stops the thread (call it before the video closes).
+    ``prepare``, when given, turns each decoded frame into what the consumer gets, in the
+    same thread (the tracker's whole-frame images, :meth:`trackcli.trackers.base.Tracker.prepare`).
+    ``decode_seconds`` is the decoding time, ``prepare_seconds`` the time in ``prepare``,
+    ``wait_seconds`` the time the consumer spent waiting for a frame.  :meth:`close` stops
+    the thread (call it before the video closes).
     """
 
     _END = object()
 
-    def __init__(self, frames: Iterable[Any], depth: int = 4):
+    def __init__(self, frames: Iterable[Any], depth: int = 4, prepare: Callable[[Any], Any] | None = None):
         self._it = iter(frames)
+        self._prepare = prepare
+        self.prepare_seconds = 0.0
         self.decode_seconds = 0.0
         self.wait_seconds = 0.0
         self.current: Any = None
@@ -55,6 +60,10 @@ class DecodeAhead:
                     break
                 finally:
                     self.decode_seconds += time.perf_counter() - t0
+                if self._prepare is not None:
+                    t0 = time.perf_counter()
+                    frame = self._prepare(frame)
+                    self.prepare_seconds += time.perf_counter() - t0
                 if not self._put(frame):
                     return
             self._put(self._END)

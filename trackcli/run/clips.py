@@ -117,6 +117,7 @@ def run_clip(
     smooth_csv_path: Path | None = None,
     properties: dict[str, Any] | None = None,
     extra_columns: list[str] | None = None,
+    prepare: Callable[[Any], Any] | None = None,
 ) -> RunSummary:
     """Track ``video`` with ``make_tracker(frames)`` and write the outputs.
 
@@ -149,11 +150,16 @@ def run_clip(
         the common ones, and time series ``series/extra/NAME`` in the recording; label
         posteriors ``p_<label>`` (mixed-state dynamics) go in one plot ``series/labels`` and
         a label strip ``labels/posterior_over_time`` instead.
+    prepare : callable, optional
+        Applied to every decoded frame in the thread that decodes ahead (the tracker's
+        :meth:`~trackcli.trackers.base.Tracker.prepare`: feature image and colour map), so
+        that these whole-frame images are made while the previous frame is tracked;
+        ``make_tracker`` then receives its results.
     """
     if outline_points == 1:
         raise ConfigError("output.outline_points: expected 0 (no outline) or at least 2 points, got 1")
     outline = OutlineColumns(space, int(outline_points)) if outline_points else None
-    frames = DecodeAhead(video)
+    frames = DecodeAhead(video, prepare=prepare)
     results = make_tracker(frames)
     recorder: BackgroundRecorder | None = None
     t_start = time.perf_counter()
@@ -278,7 +284,8 @@ def run_clip(
     if rec_ctx is not None:
         rec_ctx.__exit__(None, None, None)
     # the tracker's own time: its steps, less the time they waited for a decoded frame
-    tracker_seconds = max(step_seconds - frames.wait_seconds, 1e-9)
+    # the tracker's work: its steps, and the images `prepare` made for them while decoding
+    tracker_seconds = max(step_seconds - frames.wait_seconds + frames.prepare_seconds, 1e-9)
     return RunSummary(
         clip=str(getattr(video, "path", "?")), tracker=tracker, frames=n, frames_lost=lost,
         mean_found_fraction=found_sum / n if n else 0.0,
@@ -685,7 +692,8 @@ def track_clip(
                                params=params, jpeg_quality=settings.output.jpeg_quality,
                                progress=bar.update, recording_id=f"{name}-{tracker}-seed{settings.seed}",
                                properties=properties, outline_points=settings.output.outline_points,
-                               frames_mode=settings.output.frames, smoother=smoother, smooth_csv_path=smooth_path)
+                               frames_mode=settings.output.frames, smoother=smoother, smooth_csv_path=smooth_path,
+                               prepare=the_tracker.prepare)
         # written with the outputs, not before them: a run that fails leaves no configuration
         write_text(config_path, dump_yaml(settings))
         log.info("%s: %d frames decoded in %.2f s, tracked in %.2f s", name, summary.frames, summary.decode_seconds,

@@ -100,12 +100,16 @@ class FrameResult:
 
 @dataclass(frozen=True, eq=False)
 class FrameData:
-    """One decoded frame as a tracker sees it: the BGR ``image`` and its feature image."""
+    """One decoded frame as a tracker sees it: the BGR ``image``, its feature image and, once
+    the tracker has learned the object's colours, its colour map (:meth:`Tracker.prepare`)."""
 
     index: int
     time: float
     image: np.ndarray
     features: np.ndarray
+    colour: np.ndarray | None = None
+    """The colour log-ratio map of the appearance model (:meth:`trackcli.observe.presence.Presence.colour_map`);
+    None: made when the frame is tracked."""
 
 
 class LossRecord:
@@ -172,15 +176,35 @@ class Tracker(ABC):
     def step(self, frame: FrameData) -> FrameResult:
         """Assimilate one frame and return the estimate (the first call starts on the template)."""
 
+    def prepare(self, frame: Any) -> FrameData:
+        """The per-frame images that depend on the frame alone: its feature image and, once the
+        tracker has learned the object's appearance on its first frame, the colour map.
+
+        Safe to call from another thread while :meth:`step` runs (``track`` calls it in the
+        thread that decodes ahead, so that these whole-frame images are made while the
+        previous frame is tracked): it reads only settings and the appearance model, which
+        do not change after the first frame.  The result is the same wherever it is made.
+        """
+        m = self.settings.measurement
+        judge = getattr(self, "judge", None)
+        colour = judge.colour_map(frame.image) if judge is not None else None
+        return FrameData(int(frame.index), float(frame.time), frame.image, feature_image(frame.image, m), colour)
+
 
 def run_tracker(tracker: Tracker, frames: Iterable[Any], measurement: MeasurementSettings | None = None
                 ) -> Iterator[FrameResult]:
     """The frame loop: for each decoded frame, the feature image, then one tracker step.
 
     ``frames`` yields objects with ``index``, ``time`` and ``image`` (BGR), e.g. a
-    :class:`trackcli.io.video.Video`; ``measurement`` defaults to the tracker's settings.
+    :class:`trackcli.io.video.Video`, or :class:`FrameData` already prepared
+    (:meth:`Tracker.prepare`); ``measurement``, when given, replaces the tracker's
+    measurement settings for the feature image.
     """
-    m = measurement if measurement is not None else tracker.settings.measurement
     for frame in frames:
-        data = FrameData(int(frame.index), float(frame.time), frame.image, feature_image(frame.image, m))
+        if measurement is not None:
+            data = FrameData(int(frame.index), float(frame.time), frame.image, feature_image(frame.image, measurement))
+        elif isinstance(frame, FrameData):
+            data = frame
+        else:
+            data = tracker.prepare(frame)
         yield tracker.step(data)

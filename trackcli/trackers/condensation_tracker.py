@@ -238,7 +238,7 @@ class CondensationTracker(Tracker):
         if self.judge is None:
             self._start(frame)
         judge = self.judge
-        ev = judge.evidence(frame.image, frame.features, self.centre)
+        ev = judge.evidence(frame.image, frame.features, self.centre, frame.colour)
         fimg = ev.fimg  # without letterbox bars
         self.observation.prepare(frame.image, fimg, ev)
 

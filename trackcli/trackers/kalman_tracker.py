@@ -72,7 +72,7 @@ class KalmanTracker(Tracker):
         contour, centroid, bbox = contour_summary(space, X)
         est_pts, est_nrm = space.points_normals(X, self.sampler)
         judge = self.judge
-        ev = judge.evidence(frame.image, fimg, centroid)
+        ev = judge.evidence(frame.image, fimg, centroid, frame.colour)
         spread = float(np.hypot(state.X_std[0], state.X_std[1])) / judge.app.size
         conf, log_d, _ = judge.confidence(ev, est_pts, est_nrm, spread)
         return FrameResult(

@@ -140,7 +140,7 @@ class MHTTracker(Tracker):
             c = self.settings.condensation
             self.jumps = translation_jumps(c.jump_fraction, c.jump_size * self.judge.app.size, c.jump_brake)
         judge = self.judge
-        ev = judge.evidence(frame.image, fimg, self.centre)
+        ev = judge.evidence(frame.image, fimg, self.centre, frame.colour)
         self.observation.prepare(frame.image, fimg, ev)
 
         prior = self.modes if first else [kalman.predict(mode, self.dynamics) for mode in self.modes]
