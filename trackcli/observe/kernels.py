@@ -275,7 +275,8 @@ def count_line_features(img, y0, y1, x0, x1, stride, threshold):  # pragma: no c
 
     A feature is a local maximum of ``|D|`` (``D`` the difference of neighbouring pixels
     along the line) at least ``threshold``; ``candidates`` is the number of places tested
-    (two fewer than the differences of each line).
+    (two fewer than the differences of each line).  The columns are scanned together, a row
+    at a time, so that the image is read in memory order.
     """
     count = 0
     length = 0
@@ -290,17 +291,23 @@ def count_line_features(img, y0, y1, x0, x1, stride, threshold):  # pragma: no c
                 prev = cur
                 cur = nxt
             length += x1 - x0 - 3
-    if y1 - y0 >= 4:  # columns
-        for x in range(x0, x1, stride):
-            prev = abs(img[y0 + 1, x] - img[y0, x])
-            cur = abs(img[y0 + 2, x] - img[y0 + 1, x])
-            for y in range(y0 + 2, y1 - 1):
+    if y1 - y0 >= 4:  # columns, each with its two last differences
+        n_col = (x1 - x0 + stride - 1) // stride
+        prev = np.empty(n_col, img.dtype)
+        cur = np.empty(n_col, img.dtype)
+        for c in range(n_col):
+            x = x0 + c * stride
+            prev[c] = abs(img[y0 + 1, x] - img[y0, x])
+            cur[c] = abs(img[y0 + 2, x] - img[y0 + 1, x])
+        for y in range(y0 + 2, y1 - 1):
+            for c in range(n_col):
+                x = x0 + c * stride
                 nxt = abs(img[y + 1, x] - img[y, x])
-                if cur > prev and cur >= nxt and cur >= threshold:
+                if cur[c] > prev[c] and cur[c] >= nxt and cur[c] >= threshold:
                     count += 1
-                prev = cur
-                cur = nxt
-            length += y1 - y0 - 3
+                prev[c] = cur[c]
+                cur[c] = nxt
+        length += n_col * (y1 - y0 - 3)
     return count, length
 
 
