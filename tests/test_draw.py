@@ -254,6 +254,29 @@ def test_box_segmentation_is_reproducible():
     np.testing.assert_array_equal(draw.segment_box(img, box), draw.segment_box(img, box))
 
 
+def test_box_segmentation_reports_each_grabcut_run_and_gives_the_same_mask(monkeypatch):
+    """draw's progress bar: one step per GrabCut run, never more than segment_runs says,
+    on a colour frame and on its grey copy (whose texture is segmented too)."""
+    img, outline = dark_ellipse_image(np.random.default_rng(6))
+    box = grown_box(outline, 0.15)
+    grey = cv2.cvtColor(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), cv2.COLOR_GRAY2BGR)
+    runs = {}
+    real = draw._run_grabcut
+
+    def counting(*args, **kwargs):
+        runs["n"] += 1
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(draw, "_run_grabcut", counting)
+    for image, most in ((img, 4), (grey, 8)):
+        assert draw.segment_runs(image) == most
+        steps: list[int] = []
+        runs["n"] = 0
+        mask = draw.segment_box(image, box, progress=steps.append)
+        assert runs["n"] >= 2 and sum(steps) >= runs["n"] and sum(steps) <= most
+        np.testing.assert_array_equal(mask, draw.segment_box(image, box))
+
+
 def test_box_without_an_object_falls_back_to_the_inscribed_ellipse(caplog):
     img = np.full((120, 160, 3), 128, np.uint8)
     with caplog.at_level(logging.WARNING, logger="trackcli.shapes.draw"):

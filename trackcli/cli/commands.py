@@ -238,7 +238,9 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
         source = f"ellipse {ellipse}"
     elif box:
         b = draw.parse_numbers(box, 4, "--box")
-        mask_image, method = draw.segment_box(frame.image, tuple(b), with_method=True)
+        # GrabCut takes seconds on a large frame (longer on a grey one, whose texture is segmented too)
+        with _progress(click.get_current_context(), draw.segment_runs(frame.image), "segmenting the box") as bar:
+            mask_image, method = draw.segment_box(frame.image, tuple(b), with_method=True, progress=bar.update)
         outline = draw.mask_outline(mask_image)
         source = f"box {box} ({method})"
     else:

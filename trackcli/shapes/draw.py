@@ -18,6 +18,7 @@ from __future__ import annotations
 import logging
 import math
 import re
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -193,11 +194,21 @@ TEXTURE_GAIN = 4.0
 REFIT_GAIN = 0.1
 
 
+def segment_runs(image_bgr: np.ndarray) -> int:
+    """The GrabCut runs :func:`segment_box` makes at most on this frame (its ``progress`` steps):
+    the whole frame and the box's surroundings, each possibly again without a leak, on the
+    frame and, on a grey frame, on its texture image."""
+    from trackcli.observe.discriminant import is_grey
+
+    return 4 * (2 if is_grey(image_bgr) else 1)
+
+
 def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *, iterations: int = 5,
-                with_method: bool = False):
+                with_method: bool = False, progress: Callable[[int], None] | None = None):
     """Segment the object inside ``box = (x, y, w, h)`` with GrabCut; returns a uint8 mask
     (with ``with_method``, ``(mask, method)``: ``"GrabCut"``, or ``"inscribed ellipse"`` when
-    GrabCut found no clear object).
+    GrabCut found no clear object).  ``progress(1)`` is called after each of the at most
+    :func:`segment_runs` GrabCut runs (a second or more each on a large frame).
 
     Everything outside the box is background.  GrabCut runs on the whole frame, and on the
     box with a ring of :data:`SEGMENT_MARGIN` times its size around it, where the background
@@ -246,20 +257,25 @@ def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *
         # the box outside the frame) give it that background
         p = EDGE_PAD + int(math.ceil(max(0.0, -x, -y, x + w - w_img, y + h - h_img)))
         big = cv2.copyMakeBorder(image_bgr, p, p, p, p, cv2.BORDER_REPLICATE)
-        mask, method = _segment(big, (x + p, y + p, w, h), (x0 + p, y0 + p, x1 - x0, y1 - y0), iterations)
+        mask, method = _segment(big, (x + p, y + p, w, h), (x0 + p, y0 + p, x1 - x0, y1 - y0), iterations,
+                                progress)
         mask = np.ascontiguousarray(mask[p:-p, p:-p])
     else:
-        mask, method = _segment(image_bgr, box, (x0, y0, x1 - x0, y1 - y0), iterations)
+        mask, method = _segment(image_bgr, box, (x0, y0, x1 - x0, y1 - y0), iterations, progress)
     return (mask, method) if with_method else mask
 
 
 def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect: tuple[int, int, int, int],
-             iterations: int) -> tuple[np.ndarray, str]:
+             iterations: int, progress: Callable[[int], None] | None = None) -> tuple[np.ndarray, str]:
     """:func:`segment_box` of a checked box, ``rect`` its whole-pixel part inside the frame:
     ``(mask, method)``."""
     import cv2
 
     from trackcli.observe.discriminant import is_grey
+
+    def tick() -> None:
+        if progress is not None:
+            progress(1)
 
     h_img, w_img = image_bgr.shape[:2]
     x, y, w, h = box
@@ -275,8 +291,10 @@ def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect
     candidates: list[np.ndarray | None] = []
     for image in (image_bgr,) if texture is None else (image_bgr, texture):
         candidates.append(_grabcut(image, box, iterations))
+        tick()
         if (cx0, cy0, cx1, cy1) != (0, 0, w_img, h_img):
             sub = _grabcut(np.ascontiguousarray(image[cy0:cy1, cx0:cx1]), (x - cx0, y - cy0, w, h), iterations)
+            tick()
             if sub is not None:
                 local = np.zeros((h_img, w_img), np.uint8)
                 local[cy0:cy1, cx0:cx1] = sub
@@ -292,7 +310,11 @@ def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect
         cv2.ellipse(fallback, box_rr, 255, -1)
         return fallback, "inscribed ellipse"
     lab = cv2.cvtColor(cv2.GaussianBlur(image_bgr, (5, 5), 0), cv2.COLOR_BGR2Lab)
-    candidates += [m for m in (_unleak(image_bgr, lab, c, rect, iterations) for c in list(candidates)) if m is not None]
+    unleaked = []
+    for c in list(candidates):
+        unleaked.append(_unleak(image_bgr, lab, c, rect, iterations))
+        tick()
+    candidates += [m for m in unleaked if m is not None]
     # the box was drawn around the object: a mask that spans much less of it has lost a part
     # (a bust's head, whose colours are common around it), so such masks are chosen only when
     # every candidate is one
