@@ -74,7 +74,11 @@ def main() -> None:
     ap.add_argument("--long", type=int, default=1600, help="frames of the long 320x240 clip (0: none)")
     ap.add_argument("--threads", type=int, default=None, help="track --threads (default: the setting's default)")
     args = ap.parse_args()
-    work = Path(tempfile.mkdtemp(prefix="bench-run-"))
+    with tempfile.TemporaryDirectory(prefix="bench-run-") as tmp:  # its clips and outputs: 340 MB
+        _bench(args, Path(tmp))
+
+
+def _bench(args: argparse.Namespace, work: Path) -> None:
     sample = REPO / "sample_data"
     box = load_truth(sample / "test.truth.csv").box[0]
     clips = [("test 480x360", sample / "test.mp4", box)]

@@ -31,8 +31,10 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import atexit
 import json
 import math
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -97,7 +99,7 @@ def main() -> None:
     ap.add_argument("--seeds", default="1,2", help="sample-data seeds to regenerate (comma separated; '' for none)")
     ap.add_argument("--footage", type=Path, default=quality.DEFAULT_FOOTAGE)
     ap.add_argument("--cache", type=Path, default=quality.DEFAULT_CACHE)
-    ap.add_argument("--only", nargs="*", help="clip names (prefix match)")
+    ap.add_argument("--only", nargs="+", action="extend", help="clip names (prefix match); may be repeated")
     ap.add_argument("--modes", type=int, default=3, help="mht modes K")
     ap.add_argument("--samples", type=int, default=10, help="mht seeds per mode S (CONDENSATION matched: N = K*S)")
     ap.add_argument("--structure", nargs="*", default=[], metavar="CLIP=TEMPLATE",
@@ -113,6 +115,8 @@ def main() -> None:
         clips = [c for c in clips if any(c.name.startswith(o) for o in args.only)]
     work = args.keep or Path(tempfile.mkdtemp(prefix="compare-"))
     work.mkdir(parents=True, exist_ok=True)
+    if not args.keep:  # the templates and tracks go with the process, however it ends
+        atexit.register(shutil.rmtree, work, True)
     configs = configurations(args.modes, args.samples, work)
     structures = {clip: Path(t).resolve() for clip, t in (item.split("=", 1) for item in args.structure)}
     if structures and coupled_available():

@@ -436,7 +436,7 @@ def main() -> None:
     ap.add_argument("--footage", type=Path, default=DEFAULT_FOOTAGE)
     ap.add_argument("--cache", type=Path, default=DEFAULT_CACHE)
     ap.add_argument("--peers", action="store_true", help="also run OpenCV's CSRT, KCF, MIL")
-    ap.add_argument("--only", nargs="*", help="clip names (prefix match)")
+    ap.add_argument("--only", nargs="+", action="extend", help="clip names (prefix match); may be repeated")
     ap.add_argument("--json", type=Path, help="write all results here")
     ap.add_argument("--keep", type=Path, help="keep templates and tracks in this folder")
     ap.add_argument("--grey", action="store_true",
