@@ -283,8 +283,8 @@ def run_clip(
         frames.close()
     if rec_ctx is not None:
         rec_ctx.__exit__(None, None, None)
-    # the tracker's own time: its steps, less the time they waited for a decoded frame
-    # the tracker's work: its steps, and the images `prepare` made for them while decoding
+    # the tracker's own time: its steps, less the time they waited for a decoded frame, plus
+    # the time `prepare` spent on their images in the decoding thread
     tracker_seconds = max(step_seconds - frames.wait_seconds + frames.prepare_seconds, 1e-9)
     return RunSummary(
         clip=str(getattr(video, "path", "?")), tracker=tracker, frames=n, frames_lost=lost,

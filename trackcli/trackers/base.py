@@ -163,6 +163,10 @@ class Tracker(ABC):
     extra_columns: list[str] = []
     #: what log messages call the clip (set by whoever runs the tracker; empty: nothing)
     label: str = ""
+    #: the appearance model learned on the first frame, when the tracker has one
+    #: (:class:`trackcli.observe.presence.Presence`; None before): :meth:`prepare` makes the
+    #: colour map with it
+    judge: Any = None
 
     def __init__(self, space: ShapeSpace, dynamics: Any, settings: Settings, rng: np.random.Generator | None = None,
                  *, X0: np.ndarray | None = None):
@@ -186,7 +190,7 @@ class Tracker(ABC):
         do not change after the first frame.  The result is the same wherever it is made.
         """
         m = self.settings.measurement
-        judge = getattr(self, "judge", None)
+        judge = self.judge
         colour = judge.colour_map(frame.image) if judge is not None else None
         return FrameData(int(frame.index), float(frame.time), frame.image, feature_image(frame.image, m), colour)
 
