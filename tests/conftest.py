@@ -48,19 +48,23 @@ def ellipse_frame(rng: np.random.Generator, k: int = 0) -> np.ndarray:
     return img
 
 
-@pytest.fixture(scope="session")
-def ellipse_clip(tmp_path_factory) -> Path:
-    """A 6-frame 160x120 Motion-JPEG .avi of a dark ellipse drifting over a noisy background."""
+def write_ellipse_clip(path: Path, n_frames: int = CLIP_FRAMES, seed: int = 11) -> Path:
+    """Write ``n_frames`` of :func:`ellipse_frame` to ``path`` as a 25 frames/s Motion-JPEG .avi."""
     import cv2
 
-    path = tmp_path_factory.mktemp("clip") / "ellipse.avi"
-    rng = np.random.default_rng(11)
+    rng = np.random.default_rng(seed)
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, CLIP_SIZE)
     assert writer.isOpened(), "OpenCV cannot write MJPG .avi here"
-    for k in range(CLIP_FRAMES):
+    for k in range(n_frames):
         writer.write(ellipse_frame(rng, k))
     writer.release()
     return path
+
+
+@pytest.fixture(scope="session")
+def ellipse_clip(tmp_path_factory) -> Path:
+    """A 6-frame 160x120 Motion-JPEG .avi of a dark ellipse drifting over a noisy background."""
+    return write_ellipse_clip(tmp_path_factory.mktemp("clip") / "ellipse.avi")
 
 
 def check_placed(learned, placed) -> None:

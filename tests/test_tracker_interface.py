@@ -89,15 +89,9 @@ def test_images_prepared_while_decoding_give_the_same_track(tmp_path, name):
     ahead (Tracker.prepare); the track must be the one of images made in the tracking thread."""
     import threading
 
-    import cv2
-    from conftest import CLIP_SIZE, ellipse_frame
+    from conftest import write_ellipse_clip
 
-    clip = tmp_path / "ellipse.avi"
-    rng = np.random.default_rng(5)
-    writer = cv2.VideoWriter(str(clip), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, CLIP_SIZE)
-    for k in range(24):
-        writer.write(ellipse_frame(rng, k))
-    writer.release()
+    clip = write_ellipse_clip(tmp_path / "ellipse.avi", n_frames=24, seed=5)
     settings = Settings()
     space = _space()
     prepared: list[tuple[str, bool]] = []

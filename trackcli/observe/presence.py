@@ -56,15 +56,11 @@ class Presence:
                                            miss=judge.miss, colour_weight=judge.colour_weight)
         return dataclasses.replace(judge, reference=reference)
 
-    def colour_map(self, image: np.ndarray) -> np.ndarray:
-        """The colour log-ratio map of a frame (:meth:`trackcli.observe.discriminant.Appearance.colour_map`)."""
-        return self.app.colour_map(image)
-
     def evidence(self, image: np.ndarray, fimg: np.ndarray, centre: np.ndarray,
                  colour: np.ndarray | None = None) -> observe.FrameEvidence:
         """The frame's evidence; with bars, its feature image without them (``ev.fimg``), its
-        colour map 0 on them, and ``ev.area`` the picture.  ``colour``: the frame's
-        :meth:`colour_map` if already made (it is changed in place on the bars)."""
+        colour map 0 on them, and ``ev.area`` the picture.  ``colour``: the frame's colour map
+        (``app.colour_map``) if already made (it is changed in place on the bars)."""
         if self.area is None:
             return observe.evidence(self.app, image, fimg, centre, self.threshold, cmap=colour)
         ev = observe.evidence(self.app, image, observe.without_bars(fimg, self.area), centre, self.threshold,

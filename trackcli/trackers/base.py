@@ -108,7 +108,7 @@ class FrameData:
     image: np.ndarray
     features: np.ndarray
     colour: np.ndarray | None = None
-    """The colour log-ratio map of the appearance model (:meth:`trackcli.observe.presence.Presence.colour_map`);
+    """The colour log-ratio map of the appearance model (:meth:`trackcli.observe.discriminant.Appearance.colour_map`);
     None: made when the frame is tracked."""
 
 
@@ -191,7 +191,7 @@ class Tracker(ABC):
         """
         m = self.settings.measurement
         judge = self.judge
-        colour = judge.colour_map(frame.image) if judge is not None else None
+        colour = judge.app.colour_map(frame.image) if judge is not None else None
         return FrameData(int(frame.index), float(frame.time), frame.image, feature_image(frame.image, m), colour)
 
 
