@@ -207,6 +207,21 @@ def test_overrides_beat_file_values_and_defaults_fill_the_rest(tmp_path):
     assert s.kalman.kappa == Settings().kalman.kappa
 
 
+def test_a_section_given_in_part_keeps_its_own_defaults_for_the_rest(tmp_path):
+    """The translation and deformation dynamics share a class whose field defaults are neither's:
+    a file that sets one key of a section gets that section's defaults for the others."""
+    d = Settings().dynamics
+    p = write(tmp_path, "dynamics:\n  deformation:\n    beta: 0.5\n  translation:\n    beta: 1.0\n")
+    s = load_settings(p).dynamics
+    assert s.deformation == dataclasses.replace(d.deformation, beta=0.5)
+    assert s.translation == dataclasses.replace(d.translation, beta=1.0)
+    assert s.deformation.rho == 0.1 and s.translation.rho is None and s.translation.gamma0 == 5.0
+    # the same through dotted overrides, and from a stored mapping (a model file's settings)
+    assert load_settings(None, {"dynamics.deformation.beta": 0.5}).dynamics.deformation.rho == d.deformation.rho
+    stored = settings_from_dict({"dynamics": {"translation": {"f": 0.0}}}).dynamics.translation
+    assert stored == d.translation
+
+
 def test_none_overrides_leave_file_values(tmp_path):
     p = write(tmp_path, "seed: 5\n")
     assert load_settings(p, {"seed": None, "video.fps": None}).seed == 5

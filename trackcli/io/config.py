@@ -262,7 +262,9 @@ class Settings:
 # Parsing
 
 
-def _build(cls: type, data: Any, path: str) -> Any:
+def _build(cls: type, data: Any, path: str, base: Any = None) -> Any:
+    """``cls`` from the settings in ``data``; the ones ``data`` leaves out come from ``base``
+    (the section's own defaults) or else the class's."""
     if not isinstance(data, Mapping):
         raise ConfigError(f"{path or 'config'}: expected a mapping of settings, got {short_repr(data)}")
     fields = {f.name: f for f in dataclasses.fields(cls)}
@@ -276,8 +278,11 @@ def _build(cls: type, data: Any, path: str) -> Any:
         if "spec" in fld.metadata:
             kwargs[key] = fld.metadata["spec"].check(where, value)
         else:
-            kwargs[key] = _build(type(fld.default_factory()), value, where)  # type: ignore[misc]
-    return cls(**kwargs)
+            # a section's defaults may differ from its class's (the translation and deformation
+            # dynamics share a class): keys left out keep the section's own
+            default = fld.default_factory()  # type: ignore[misc]
+            kwargs[key] = _build(type(default), value, where, default)
+    return cls(**kwargs) if base is None else dataclasses.replace(base, **kwargs)
 
 
 
