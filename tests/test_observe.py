@@ -548,6 +548,41 @@ def test_an_object_mostly_beyond_the_frame_edge_is_not_held():
     assert judge.confidence(judge.evidence(img, fimg, space.origin), pts, nrm, 0.0)[0] > 0.9
 
 
+def test_an_estimate_half_beyond_the_frame_edge_is_not_held():
+    """The object at the frame's right edge with half its outline inside: the normals there find its
+    edge and colour, so the curve's score alone would call it held, but half of the curve has no
+    data (on a street clip, an outline half past the top edge stayed held on a dark doorway for
+    40 frames while the pedestrian walked on)."""
+    space, judge, sampler, _ = ellipse_scene(0)
+    img = object_frame(np.random.default_rng(7), centre=(float(W), 120.0))
+    m = MeasurementSettings()
+    fimg = measure.feature_image(img, sigma=m.smoothing, edge_sigma=m.edge_sigma)
+    X = np.zeros(space.Nx)
+    X[0] = W - 240.0
+    ev = judge.evidence(img, fimg, space.origin + X[:2])
+    pts, nrm = space.points_normals(X, sampler)
+    assert 0.4 < observe.visible_share(pts, img.shape) < 0.6
+    score, _, _ = observe.presence(judge.app, ev, pts, nrm, h=judge.h, sigma=judge.sigma, threshold=judge.threshold,
+                                   miss=judge.miss, colour_weight=judge.colour_weight)
+    assert observe.confidence(score, 0.0, reference=judge.reference, centre=judge.centre) > m.lost_below
+    assert judge.confidence(ev, pts, nrm, 0.0)[0] < m.lost_below
+
+
+def test_an_object_the_frame_edge_cuts_from_the_start_is_held():
+    """Visibility is judged against the template's own: an object drawn where the frame's edge cuts
+    it (a bust, a car entering) and still cut the same way is held."""
+    cx = W - 5.0
+    img = object_frame(np.random.default_rng(3), centre=(cx, 120.0))
+    space = ellipse_space(cx, 120, 30, 40)
+    judge, _, sampler = presence_for(img, space)
+    assert 0.4 < judge.visible_start < 0.7
+    m = MeasurementSettings()
+    later = object_frame(np.random.default_rng(4), centre=(cx, 120.0))
+    fimg = measure.feature_image(later, sigma=m.smoothing, edge_sigma=m.edge_sigma)
+    pts, nrm = space.points_normals(np.zeros(space.Nx), sampler)
+    assert judge.confidence(judge.evidence(later, fimg, space.origin), pts, nrm, 0.0)[0] > 0.9
+
+
 def test_colour_peaks_read_nothing_beyond_the_frame_edge():
     """A thin object-coloured line along the frame's border (a video's dark edge) is not an
     object-sized region; an object-sized blob of weaker colour evidence inside the frame is."""

@@ -468,10 +468,12 @@ def presence(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np
     return e + colour_weight * col, e, col
 
 
-#: the confidence is 1 while at least this share of the curve lies inside the frame ...
-VISIBLE_FULL = 0.5
-#: ... and 0 at or below this share: an estimate mostly beyond the frame's edge is not held
-VISIBLE_NONE = 0.2
+#: the confidence is 1 while at least this share of the curve lies inside the frame (the trackers
+#: give it as a share of the template's own on its first frame, :class:`~trackcli.observe.presence.Presence`) ...
+VISIBLE_FULL = 0.8
+#: ... and 0 at or below this share: half an outline beyond the frame's edge is scored by the half
+#: in view alone, and a look-alike there can score like the object; such an estimate is not held
+VISIBLE_NONE = 0.3
 
 
 def visible_share(points: np.ndarray, frame_shape: tuple[int, ...],

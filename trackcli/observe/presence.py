@@ -40,6 +40,9 @@ class Presence:
     centre: float
     reference: float = math.nan
     area: tuple[int, int, int, int] | None = None
+    visible_start: float = 1.0
+    """The share of the template's outline inside the frame (its picture) on the first frame: an
+    object the frame's edge cuts from the start (a bust) is not judged on what it never showed."""
 
     @classmethod
     def learn(cls, image: np.ndarray, fimg: np.ndarray, space: ShapeSpace, sampler: CurveSampler, X0: np.ndarray,
@@ -54,7 +57,8 @@ class Presence:
         ev = judge.evidence(image, fimg, space.origin + X0[:2])
         reference, _, _ = observe.presence(app, ev, pts, nrm, h=judge.h, sigma=judge.sigma, threshold=judge.threshold,
                                            miss=judge.miss, colour_weight=judge.colour_weight)
-        return dataclasses.replace(judge, reference=reference)
+        start = observe.visible_share(pts, image.shape, area)
+        return dataclasses.replace(judge, reference=reference, visible_start=start if start > 0 else 1.0)
 
     def evidence(self, image: np.ndarray, fimg: np.ndarray, centre: np.ndarray,
                  colour: np.ndarray | None = None) -> observe.FrameEvidence:
@@ -87,6 +91,6 @@ class Presence:
         total = s * pts.shape[0]
         if posterior_score is not None and math.isfinite(posterior_score):
             s = max(s, posterior_score)
-        visible = observe.visible_share(pts, ev.fimg.shape, ev.area)
+        visible = min(1.0, observe.visible_share(pts, ev.fimg.shape, ev.area) / self.visible_start)
         conf = observe.confidence(s, spread, reference=self.reference, centre=self.centre, visible=visible)
         return conf, e * pts.shape[0], total
