@@ -552,7 +552,7 @@ def test_an_estimate_half_beyond_the_frame_edge_is_not_held():
     """The object at the frame's right edge with half its outline inside: the normals there find its
     edge and colour, so the curve's score alone would call it held, but half of the curve has no
     data (on a street clip, an outline half past the top edge stayed held on a dark doorway for
-    40 frames while the pedestrian walked on)."""
+    45 frames while the pedestrian walked on)."""
     space, judge, sampler, _ = ellipse_scene(0)
     img = object_frame(np.random.default_rng(7), centre=(float(W), 120.0))
     m = MeasurementSettings()
