@@ -583,6 +583,49 @@ def test_an_object_the_frame_edge_cuts_from_the_start_is_held():
     assert judge.confidence(judge.evidence(later, fimg, space.origin), pts, nrm, 0.0)[0] > 0.9
 
 
+def test_colour_peaks_in_a_window_leave_out_stronger_regions_beyond_it():
+    """While lost, only the part of the frame near where the object was last held is searched:
+    a stronger look-alike across the frame is not a peak, the weaker region inside is."""
+    cmap = np.zeros((240, 320), np.float32)
+    cv2.circle(cmap, (260, 60), 14, 3.0, -1)  # a look-alike, strongly object-coloured
+    cv2.circle(cmap, (80, 160), 14, 1.0, -1)  # the object, weaker
+    everywhere, _ = observe.colour_peaks(cmap, 28.0)
+    np.testing.assert_allclose(everywhere[0], (260, 60), atol=4)
+    near, strengths = observe.colour_peaks(cmap, 28.0, window=(20.0, 100.0, 140.0, 220.0))
+    assert len(near) >= 1 and strengths[0] > 0.5
+    np.testing.assert_allclose(near[0], (80, 160), atol=4)
+    assert np.all((near[:, 0] <= 140) & (near[:, 1] >= 100))
+    assert len(observe.colour_peaks(cmap, 28.0, window=(0.0, 0.0, 40.0, 40.0))[0]) == 0
+
+
+def test_reacquisition_in_a_window_puts_the_priors_uniform_part_on_the_window_only():
+    """With a window, the chance that the object comes back is spread over the window's part of
+    the frame instead of the whole frame: a redrawn sample far from the motion prior weighs
+    frame area / window area more, and one beyond the window weighs as the motion prior alone
+    says (nothing, far from it)."""
+    size = 40.0
+    origin = np.array([150.0, 120.0])
+    prior = np.zeros((20_000, 4))
+    prior[:, :2] = np.random.default_rng(6).normal(0.0, 10.0, (prior.shape[0], 2))
+    centres = np.array([[280.0, 200.0], [40.0, 30.0]])
+    window = (200.0, 150.0, 330.0, 260.0)  # beyond the frame's right and bottom edges (W, H = 320, 240)
+    runs = {}
+    for name, win in (("frame", None), ("window", window)):
+        propose = observe.reacquisition_proposal(centres, np.array([1.0, 1.0]), origin, size, (W, H),
+                                                 fraction=0.4, reappear=0.1, window=win)
+        runs[name] = propose(prior - 1.0, prior, np.random.default_rng(8))
+    out = runs["frame"][1]
+    assert np.array_equal(out, runs["window"][1])  # the same draws: only the weights differ
+    img = out[:, :2] + origin
+    far = np.hypot(*(img - origin).T) > 100  # where the motion prior is nil
+    inside = far & (img[:, 0] >= 200) & (img[:, 1] >= 150)
+    beyond = far & (img[:, 0] < 120)
+    assert inside.sum() > 1000 and beyond.sum() > 1000
+    gain = runs["window"][2][inside] - runs["frame"][2][inside]
+    np.testing.assert_allclose(gain, math.log(W * H / ((319.5 - 200.0) * (239.5 - 150.0))), rtol=1e-6)
+    assert np.all(runs["window"][2][beyond] < runs["frame"][2][beyond] - 50)
+
+
 def test_colour_peaks_read_nothing_beyond_the_frame_edge():
     """A thin object-coloured line along the frame's border (a video's dark edge) is not an
     object-sized region; an object-sized blob of weaker colour evidence inside the frame is."""

@@ -156,3 +156,83 @@ def test_reacquisition_starts_after_enough_lost_frames_in_a_row_or_in_a_flickeri
         assert not fed(flicker[1:] + [False]).reacquire  # one fewer lost in the window
         assert not fed([True, False, False] * 20).reacquire  # one in three: too thin
     assert not fed([True] * after + [False] * (2 * after - 1)).reacquire  # held long enough: over
+
+
+# A look-alike across the frame: the object (the oval of the clip above) moves right, is hidden
+# for 0.6 s and comes back a little further on; an oval of the same colour stands still 280 px
+# to its right all the while.
+WIDE = 480
+LOOKALIKE = (400.0, 120.0)
+BRIEF = range(20, 35)
+
+
+def brief_centre(k: int) -> tuple[float, float] | None:
+    return None if k in BRIEF else (90.0 + 1.5 * k, 120.0)
+
+
+@pytest.fixture(scope="module")
+def lookalike_rows(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("lookalike")
+    path = folder / "oval.avi"
+    rng = np.random.default_rng(11)
+    img0 = background(rng)
+    bg = np.hstack([img0, background(rng)[:, : WIDE - W]])
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, (WIDE, H))
+    assert writer.isOpened()
+    for k in range(60):
+        img = bg.copy()
+        cv2.ellipse(img, (LOOKALIKE, AXES, 0.0), (40, 60, 150), -1, cv2.LINE_AA)
+        c = brief_centre(k)
+        if c is not None:
+            cv2.ellipse(img, (c, AXES, 0.0), (40, 60, 150), -1, cv2.LINE_AA)
+        writer.write(img)
+    writer.release()
+    runner = CliRunner()
+    c0 = brief_centre(0)
+    r = runner.invoke(cli, ["draw", str(path), "--box", f"{c0[0] - 24},{c0[1] - 30},48,60", "-o",
+                            str(folder / "t.yaml")], catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    r = runner.invoke(cli, ["track", "--template", str(folder / "t.yaml"), str(path), "-o", str(folder), "--no-rrd",
+                            "--seed", "0"], catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    with open(folder / "oval.condensation.csv", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_a_look_alike_across_the_frame_is_not_taken_for_the_object_hidden_a_moment(lookalike_rows):
+    """While lost, the object is looked for near where it was last held, in a square that grows
+    with the time lost (``condensation.reacquire_speed``): the look-alike 280 px away is out of
+    reach for the 0.6 s the object is hidden, so the tracker stays lost instead of holding the
+    look-alike, and finds the object when it shows again.  (Searching the whole frame at once,
+    ``reacquire_speed: 0``, it held the look-alike from the fourth hidden frame to the end.)"""
+    def err(row, c):
+        return float(np.hypot(float(row["cx"]) - c[0], float(row["cy"]) - c[1]))
+
+    hidden = [r for r in lookalike_rows if int(r["frame"]) in BRIEF]
+    assert all(r["lost"] == "1" for r in hidden[3:])
+    assert min(err(r, LOOKALIKE) for r in lookalike_rows) > 100
+    back = [r for r in lookalike_rows if int(r["frame"]) >= BRIEF.stop + 10]
+    assert max(err(r, brief_centre(int(r["frame"]))) for r in back) < 6
+    assert not any(r["lost"] == "1" for r in back)
+
+
+def test_the_search_window_grows_with_the_time_lost_and_the_objects_speed():
+    from trackcli.trackers.condensation_tracker import REACQUIRE_NEAR, REACQUIRE_PACE, LastHeld
+
+    held = LastHeld()
+    assert held.window(1.0, 20.0, 2.0) is None  # nothing held yet
+    held.push(0.0, np.array([100.0, 50.0]))
+    assert held.speed() == 0.0
+    # at once: REACQUIRE_NEAR object sizes about the last centroid held
+    assert held.window(0.0, 20.0, 2.0) == pytest.approx((60.0, 10.0, 140.0, 90.0))
+    held.push(0.04, np.array([100.0, 50.0]))
+    held.push(0.12, np.array([100.6, 50.8]))  # a lost frame between: 1 px in 0.08 s
+    assert held.speed() == pytest.approx(12.5)
+    # a slow object: the window grows by `speed` object sizes a second (40 px/s > 2 x 12.5)
+    half = REACQUIRE_NEAR * 20.0 + 2.0 * 20.0 * 0.5
+    assert held.window(0.62, 20.0, 2.0) == pytest.approx((100.6 - half, 50.8 - half, 100.6 + half, 50.8 + half))
+    # an object seen moving faster: by REACQUIRE_PACE times its fastest
+    held.push(0.16, np.array([120.6, 50.8]))  # 500 px/s
+    assert held.speed() == pytest.approx(500.0)
+    half = REACQUIRE_NEAR * 20.0 + REACQUIRE_PACE * 500.0 * 0.5
+    assert held.window(0.66, 20.0, 2.0) == pytest.approx((120.6 - half, 50.8 - half, 120.6 + half, 50.8 + half))

@@ -10,6 +10,7 @@ re-acquisition by importance sampling after loss
 from __future__ import annotations
 
 import logging
+from collections import deque
 from typing import Any, Iterable, Iterator
 
 import numpy as np
@@ -30,6 +31,50 @@ log = logging.getLogger(__name__)
 
 
 BRAKE_SPREAD = 0.3  # isotropic part of a braking jump, as a fraction of the jump size (translation_jumps)
+#: half-width, in object sizes, of the square about the last held position searched at once when
+#: lost; it grows by condensation.reacquire_speed object sizes per second lost, or by
+#: REACQUIRE_PACE times the fastest the object was seen to move, if that is more
+REACQUIRE_NEAR = 2.0
+REACQUIRE_PACE = 2.0
+#: held frames whose centroids give the object's recent speed
+RECENT_HELD = 25
+
+
+class LastHeld:
+    """Where and when the tracker last held the object, and how fast it was moving then:
+    while lost, the object is looked for in a square about that place that grows with the
+    time lost (:meth:`window`)."""
+
+    def __init__(self) -> None:
+        self.recent: deque[tuple[float, float, float]] = deque(maxlen=RECENT_HELD)
+
+    def push(self, time: float, centroid: np.ndarray) -> None:
+        """Record a frame held, its time (s) and the estimate's centroid."""
+        self.recent.append((float(time), float(centroid[0]), float(centroid[1])))
+
+    def speed(self) -> float:
+        """The fastest the centroid moved between consecutive held frames of the last
+        :data:`RECENT_HELD`, px/s (0 with fewer than two)."""
+        if len(self.recent) < 2:
+            return 0.0
+        a = np.asarray(self.recent)
+        dt = np.diff(a[:, 0])
+        ok = dt > 0
+        if not ok.any():
+            return 0.0
+        return float((np.hypot(np.diff(a[:, 1]), np.diff(a[:, 2]))[ok] / dt[ok]).max())
+
+    def window(self, time: float, size: float, speed: float) -> tuple[float, float, float, float] | None:
+        """The square ``(x0, y0, x1, y1)`` to search at ``time``: half-width
+        :data:`REACQUIRE_NEAR` object sizes plus the time since the last held frame times the
+        larger of ``speed`` object sizes per second and :data:`REACQUIRE_PACE` times
+        :meth:`speed`; None before any frame was held."""
+        if not self.recent:
+            return None
+        since, x, y = self.recent[-1]
+        pace = max(speed * size, REACQUIRE_PACE * self.speed())
+        half = REACQUIRE_NEAR * size + pace * max(time - since, 0.0)
+        return (x - half, y - half, x + half, y + half)
 
 
 def initial_covariance(space: ShapeSpace, settings: CondensationSettings) -> np.ndarray:
@@ -117,7 +162,10 @@ class CondensationTracker(Tracker):
     ``reacquire_after`` of the last ``2 reacquire_after - 1`` frames
     (:class:`~trackcli.trackers.base.LossRecord`), a share of the samples is drawn from the colour
     proposal of :func:`trackcli.observe.discriminant.reacquisition_proposal` with its
-    importance weights.
+    importance weights, from the colour peaks in a square about the centroid of the last frame
+    held (:class:`LastHeld`): :data:`REACQUIRE_NEAR` object sizes from it at once, growing by
+    ``reacquire_speed`` object sizes per second lost, or by :data:`REACQUIRE_PACE` times the
+    fastest the object was seen to move if that is more (0: the whole frame at once).
 
     The sample set starts either as a Gaussian about ``X0`` (``init = "template"``, AC §12.4,
     "positioned by hand") or from the steady state of the motion model (``"steady_state"``,
@@ -178,6 +226,7 @@ class CondensationTracker(Tracker):
         self.scale_search: observe.ScaleSearch | None = None
         self.centre = space.origin + self.X0[:2]
         self.losses = LossRecord(c.reacquire_after)
+        self.last_held = LastHeld()
         self.k = 0
         self.threads = c.threads  # 0: automatic (see trackcli.trackers.condensation.weigh)
         # the compiled discriminant releases the GIL; the numpy models gain from threads only at large N
@@ -213,10 +262,12 @@ class CondensationTracker(Tracker):
         c = self.settings.condensation
         if not (c.reacquire and self.losses.reacquire):
             return self.jumps
-        peaks, strengths = observe.colour_peaks(ev.cmap, self.judge.app.size)
+        size = self.judge.app.size
+        window = self.last_held.window(frame.time, size, c.reacquire_speed) if c.reacquire_speed > 0 else None
+        peaks, strengths = observe.colour_peaks(ev.cmap, size, window=window)
         reacquire = observe.reacquisition_proposal(
-            peaks, strengths, self.space.origin, self.judge.app.size, (frame.image.shape[1], frame.image.shape[0]),
-            fraction=c.reacquire_fraction, scale=self.scale_search)
+            peaks, strengths, self.space.origin, size, (frame.image.shape[1], frame.image.shape[0]),
+            fraction=c.reacquire_fraction, scale=self.scale_search, window=window)
         return self.jumps if reacquire is None else _chain(self.jumps, reacquire)
 
     def _scale_search(self) -> observe.ScaleSearch | None:
@@ -278,6 +329,10 @@ class CondensationTracker(Tracker):
         loglik_mean = score_mean if discriminant else float(loglik(X[None])[0])
         lost = conf < m.lost_below
         self.losses.push(lost)
+        if np.isfinite(centroid).all() and not lost:
+            self.last_held.push(frame.time, centroid)
+        elif not self.last_held.recent:  # lost from the start: about the template
+            self.last_held.push(frame.time, self.space.origin + self.X0[:2])
         if np.isfinite(centroid).all():
             self.centre = centroid
         # normals of the estimate with a feature within the search range (reported, not used)
