@@ -76,9 +76,9 @@ def track_rows(clip, tmp_path_factory):
     return track(clip, tmp_path_factory.mktemp("reacquire-out"))
 
 
-def track(clip: Path, out: Path) -> list[dict]:
+def track(clip: Path, out: Path, c0: tuple[float, float] = centre(0)) -> list[dict]:
+    """``draw --box`` about the oval at ``c0`` on frame 0, ``track`` with the defaults: the CSV's rows."""
     runner = CliRunner()
-    c0 = centre(0)
     box = f"{c0[0] - 24},{c0[1] - 30},48,60"
     r = runner.invoke(cli, ["draw", str(clip), "--box", box, "-o", str(out / "t.yaml")], catch_exceptions=False)
     assert r.exit_code == 0, r.output
@@ -187,16 +187,7 @@ def lookalike_rows(tmp_path_factory):
             cv2.ellipse(img, (c, AXES, 0.0), (40, 60, 150), -1, cv2.LINE_AA)
         writer.write(img)
     writer.release()
-    runner = CliRunner()
-    c0 = brief_centre(0)
-    r = runner.invoke(cli, ["draw", str(path), "--box", f"{c0[0] - 24},{c0[1] - 30},48,60", "-o",
-                            str(folder / "t.yaml")], catch_exceptions=False)
-    assert r.exit_code == 0, r.output
-    r = runner.invoke(cli, ["track", "--template", str(folder / "t.yaml"), str(path), "-o", str(folder), "--no-rrd",
-                            "--seed", "0"], catch_exceptions=False)
-    assert r.exit_code == 0, r.output
-    with open(folder / "oval.condensation.csv", newline="") as f:
-        return list(csv.DictReader(f))
+    return track(path, folder, brief_centre(0))
 
 
 def test_a_look_alike_across_the_frame_is_not_taken_for_the_object_hidden_a_moment(lookalike_rows):
