@@ -329,11 +329,12 @@ class CondensationTracker(Tracker):
         loglik_mean = score_mean if discriminant else float(loglik(X[None])[0])
         lost = conf < m.lost_below
         self.losses.push(lost)
-        if np.isfinite(centroid).all() and not lost:
+        finite = bool(np.isfinite(centroid).all())
+        if finite and not lost:
             self.last_held.push(frame.time, centroid)
         elif not self.last_held.recent:  # lost from the start: about the template
-            self.last_held.push(frame.time, self.space.origin + self.X0[:2])
-        if np.isfinite(centroid).all():
+            self.last_held.push(frame.time, self.centre)
+        if finite:
             self.centre = centroid
         # normals of the estimate with a feature within the search range (reported, not used)
         n_found = observe.normals_with_features(fimg, pts, nrm, h=c.search, threshold=m.threshold,
