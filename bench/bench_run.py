@@ -16,11 +16,12 @@ Clips: the sample cluttered clip at 480 x 360 and the same clip shrunk to 320 x 
 the speed guard is stated for), a longer take of that clip (``--long`` frames, generated with
 ``trackcli sample-data --frames``, 320 x 240), plus ``pres_debate.mp4`` (1280 x 720) from the
 footage folder when present.  Run with ``OMP_NUM_THREADS=1`` etc. to hold numpy and OpenCV to
-one core.
+one core, or with ``--one-core`` to hold each command to a single CPU with ``--threads 1`` (the
+speed guard: a default run on a 320 x 240 clip at 100 frames/s or more on one core).
 
 Usage::
 
-    python bench/bench_run.py [--repeat 3] [--no-rrd] [--footage DIR] [--long 1600] [--threads N]
+    python bench/bench_run.py [--repeat 3] [--no-rrd] [--footage DIR] [--long 1600] [--threads N] [--one-core]
 """
 
 from __future__ import annotations
@@ -44,11 +45,20 @@ sys.path.insert(0, str(REPO))
 from trackcli.run.evaluate import load_truth  # noqa: E402
 
 
+#: with ``--one-core``, the CPU every command is held to
+ONE_CPU: int | None = None
+
+
+def _pin() -> None:
+    if ONE_CPU is not None:
+        os.sched_setaffinity(0, {ONE_CPU})
+
+
 def _cli(*args: str) -> tuple[float, subprocess.CompletedProcess]:
     env = dict(os.environ, CI="true")
     t0 = time.perf_counter()
     r = subprocess.run([sys.executable, "-m", "trackcli.cli", "-q", *args], capture_output=True, text=True, env=env,
-                       cwd=REPO)
+                       cwd=REPO, preexec_fn=_pin)
     return time.perf_counter() - t0, r
 
 
@@ -73,7 +83,13 @@ def main() -> None:
     ap.add_argument("--footage", type=Path, default=REPO.parent / "shared" / "footage")
     ap.add_argument("--long", type=int, default=1600, help="frames of the long 320x240 clip (0: none)")
     ap.add_argument("--threads", type=int, default=None, help="track --threads (default: the setting's default)")
+    ap.add_argument("--one-core", action="store_true",
+                    help="hold every command to one CPU (and track to --threads 1): the speed guard's setting")
     args = ap.parse_args()
+    if args.one_core:
+        global ONE_CPU
+        ONE_CPU = min(os.sched_getaffinity(0))
+        args.threads = 1
     with tempfile.TemporaryDirectory(prefix="bench-run-") as tmp:  # its clips and outputs: 340 MB
         _bench(args, Path(tmp))
 
@@ -94,7 +110,8 @@ def _bench(args: argparse.Namespace, work: Path) -> None:
     debate = args.footage / "pres_debate.mp4"
     if debate.is_file():
         clips.append(("pres_debate 1280x720", debate, np.array([320.9, 175.2, 103.5, 129.1])))
-    print(f"load average {os.getloadavg()[0]:.2f}; {os.cpu_count()} cores; threads {args.threads or 'default'}")
+    cores = f"held to CPU {ONE_CPU}" if ONE_CPU is not None else f"{os.cpu_count()} cores"
+    print(f"load average {os.getloadavg()[0]:.2f}; {cores}; threads {args.threads or 'default'}")
     print(f"{'clip':<22}{'frames':>7}{'wall s':>8}{'run fps':>9}{'start-up s':>11}{'fps w/o start':>15}"
           f"{'tracker fps':>13}")
     for name, clip, b in clips:
