@@ -618,47 +618,58 @@ def test_a_bust_keeps_its_head():
         assert draw.mask_iou(draw.segment_box(img, box), shirt) == 1.0
 
 
-def test_a_mask_that_spans_the_box_wins_over_one_a_little_better_separated_without_the_hair():
-    """Of two masks both spanning most of the box, the one spanning it whole is taken unless
-    the other separates the colours (as a Bhattacharyya distance) by more than SPAN_WEIGHT
-    times the difference in span: on
-    seed 90 of the cluttered clip the local GrabCut left out the bust's hair (span 0.86, colour
-    separation 0.757, IoU 0.86) and was chosen over the whole-frame mask (span 1.0, 0.703, IoU
-    0.93)."""
-    h, w = 120, 160
-    img = np.full((h, w, 3), (90, 120, 150), np.uint8)
-    box = (40.0, 20.0, 60.0, 80.0)
-    bust = np.zeros((h, w), np.uint8)
-    bust[20:100, 40:100] = 255
-    no_hair = bust.copy()
-    no_hair[20:31] = 0  # 86 % of the box's height
-    separation = {"bust": 0.703, "no_hair": 0.757}
+_BOX = (40.0, 20.0, 60.0, 80.0)  # in a 160 x 120 colour frame
+
+
+def _choose(whole_mask: np.ndarray, local_mask: np.ndarray, separation) -> np.ndarray:
+    """``segment_box`` on :data:`_BOX` when the whole-frame GrabCut finds ``whole_mask``, the
+    one on the box's surroundings ``local_mask``, and ``separation(mask)`` is the colour
+    separation of either."""
+    img = np.full((120, 160, 3), (90, 120, 150), np.uint8)
 
     def fake_grabcut(image, b, iterations):
-        if image.shape[:2] == (h, w):  # the whole-frame run
-            return bust
-        out = np.zeros(image.shape[:2], np.uint8)  # the local run, on the box and its ring
-        x0, y0 = int(round(b[0])), int(round(b[1]))
-        out[y0 + 11:y0 + int(b[3]), x0:x0 + int(b[2])] = 255
-        return out
-
-    def fake_separation(image, m, b):
-        return separation["bust" if np.array_equal(m, bust) else "no_hair"]
+        if image.shape[:2] == img.shape[:2]:  # the whole-frame run
+            return whole_mask
+        x0, y0 = int(round(_BOX[0] - b[0])), int(round(_BOX[1] - b[1]))  # the surroundings' corner
+        return np.ascontiguousarray(local_mask[y0:y0 + image.shape[0], x0:x0 + image.shape[1]])
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(draw, "_grabcut", fake_grabcut)
         mp.setattr(draw, "_unleak", lambda *a: None)
-        mp.setattr(draw, "colour_separation", fake_separation)
-        assert draw.mask_iou(draw.segment_box(img, box), bust) == 1.0
-        # by colour alone (no weight on the span) the mask without the hair was taken
-        mp.setattr(draw, "SPAN_WEIGHT", 0.0)
-        assert draw.mask_iou(draw.segment_box(img, box), no_hair) == 1.0
-        # and so it is when it separates the colours clearly better: by more than the span's
-        # weight, on the Bhattacharyya distance
-        mp.setattr(draw, "SPAN_WEIGHT", 2.0)
-        distance = -math.log(1 - 0.703) + 2.0 * (1 - 69 / 80) + 2 * draw.SEPARATION_MARGIN / (1 - 0.703)
-        separation["no_hair"] = 1 - math.exp(-distance)
-        assert draw.mask_iou(draw.segment_box(img, box), no_hair) == 1.0
+        mp.setattr(draw, "colour_separation", lambda image, m, b: separation(m))
+        return draw.segment_box(img, _BOX)
+
+
+def _box_mask(top: int = 20, notch: bool = False) -> np.ndarray:
+    m = np.zeros((120, 160), np.uint8)
+    m[top:100, 40:100] = 255
+    if notch:
+        m[20:30, 40:50] = 0
+    return m
+
+
+def test_a_mask_that_spans_the_box_wins_over_one_a_little_better_separated_without_the_hair(monkeypatch):
+    """Of two masks both spanning most of the box, the one spanning it whole is taken unless
+    the other separates the colours (as a Bhattacharyya distance) by more than SPAN_WEIGHT
+    times the difference in span: on seed 90 of the cluttered clip the local GrabCut left out
+    the bust's hair (span 0.86, colour separation 0.757, IoU 0.86) and was chosen over the
+    whole-frame mask (span 1.0, 0.703, IoU 0.93)."""
+    bust, no_hair = _box_mask(), _box_mask(top=31)  # the latter 86 % of the box's height
+    separation = {"bust": 0.703, "no_hair": 0.757}
+
+    def sep(m):
+        return separation["bust" if np.array_equal(m, bust) else "no_hair"]
+
+    assert draw.mask_iou(_choose(bust, no_hair, sep), bust) == 1.0
+    # by colour alone (no weight on the span) the mask without the hair was taken
+    monkeypatch.setattr(draw, "SPAN_WEIGHT", 0.0)
+    assert draw.mask_iou(_choose(bust, no_hair, sep), no_hair) == 1.0
+    # and so it is when it separates the colours clearly better: by more than the span's
+    # weight, on the Bhattacharyya distance
+    monkeypatch.setattr(draw, "SPAN_WEIGHT", 2.0)
+    distance = -math.log(1 - 0.703) + 2.0 * (1 - 69 / 80) + 2 * draw.SEPARATION_MARGIN / (1 - 0.703)
+    separation["no_hair"] = 1 - math.exp(-distance)
+    assert draw.mask_iou(_choose(bust, no_hair, sep), no_hair) == 1.0
 
 
 @pytest.mark.parametrize("whole, local, local_wins", [
@@ -669,29 +680,8 @@ def test_of_masks_spanning_the_box_alike_the_whole_frame_one_stays_unless_clearl
         whole, local, local_wins):
     """With the same span the choice is the older one: the whole-frame mask stays unless another
     separates the colours by more than SEPARATION_MARGIN (to first order, at any level of BC)."""
-    h, w = 120, 160
-    img = np.full((h, w, 3), (90, 120, 150), np.uint8)
-    box = (40.0, 20.0, 60.0, 80.0)
-    whole_mask = np.zeros((h, w), np.uint8)
-    whole_mask[20:100, 40:100] = 255
-    local_mask = whole_mask.copy()
-    local_mask[20:30, 40:50] = 0  # a notch: another mask, of the same span
-
-    def fake_grabcut(image, b, iterations):
-        if image.shape[:2] == (h, w):
-            return whole_mask
-        out = np.zeros(image.shape[:2], np.uint8)
-        x0, y0 = int(round(b[0])), int(round(b[1]))
-        out[y0:y0 + 80, x0:x0 + 60] = 255
-        out[y0:y0 + 10, x0:x0 + 10] = 0
-        return out
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(draw, "_grabcut", fake_grabcut)
-        mp.setattr(draw, "_unleak", lambda *a: None)
-        mp.setattr(draw, "colour_separation",
-                   lambda image, m, b: whole if np.array_equal(m, whole_mask) else local)
-        got = draw.segment_box(img, box)
+    whole_mask, local_mask = _box_mask(), _box_mask(notch=True)  # a notch: another mask, of the same span
+    got = _choose(whole_mask, local_mask, lambda m: whole if np.array_equal(m, whole_mask) else local)
     assert draw.mask_iou(got, local_mask if local_wins else whole_mask) == 1.0
 
 
