@@ -711,9 +711,8 @@ def reacquisition_proposal(centres: np.ndarray, strengths: np.ndarray, origin: n
         comp_log = np.log(w)[None, :] - 0.5 * (diff * diff).sum(axis=2) / sd**2 - math.log(2 * math.pi * sd * sd)
         top = comp_log.max(axis=1)
         log_g = top + np.log(np.exp(comp_log - top[:, None]).sum(axis=1))
-        if window is None:
-            log_u_all = np.full(n, log_u)
-        else:
+        log_u_all: float | np.ndarray = log_u
+        if window is not None:
             x, y = t[:, 0] + ox, t[:, 1] + oy
             log_u_all = np.where((x >= wx0) & (x <= wx1) & (y >= wy0) & (y <= wy1), log_u, -np.inf)
         if scale is not None:
