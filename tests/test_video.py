@@ -143,6 +143,13 @@ def test_folder_takes_jpg_jpeg_png_in_any_case_and_ignores_other_files(tmp_path)
     assert [frame_id(f.image) for f in video] == [0, 1, 2, 3]
 
 
+def test_folder_takes_the_lossless_formats_of_older_datasets(tmp_path):
+    names = ["f1.bmp", "f2.TIF", "f3.tiff", "f4.ppm", "f10.bmp"]
+    video = open_video(write_folder(tmp_path / "lossless", names), fps=25.0)
+    assert video.n_total == 5
+    assert [frame_id(f.image) for f in video] == [0, 1, 2, 3, 4]  # natural order: f10 last
+
+
 def test_grey_images_become_bgr(tmp_path):
     folder = tmp_path / "grey"
     folder.mkdir()

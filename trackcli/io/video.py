@@ -8,8 +8,9 @@ as drawing a template on frame ``k``.
 Sources
 -------
 - A **video file**: anything OpenCV's FFmpeg backend decodes (MP4, AVI, MKV, ...).
-- An **image folder**: the ``*.jpg``, ``*.jpeg`` and ``*.png`` files in it (case-insensitive,
-  names starting with ``.`` ignored), in natural order (``2.png`` before ``10.png``).  A folder
+- An **image folder**: the images in it (``*.jpg``, ``*.jpeg``, ``*.png``, and the lossless
+  ``*.bmp``, ``*.tif``, ``*.tiff``, ``*.pgm``, ``*.ppm`` and ``*.webp`` some datasets use;
+  case-insensitive, names starting with ``.`` ignored), in natural order (``2.png`` before ``10.png``).  A folder
   without images but with an ``img/`` sub-folder is read from there: the common tracking
   benchmark layout ``CLIP/img/0001.jpg`` (with ``CLIP/groundtruth_rect.txt`` beside it).
   Folders have no frame rate: pass ``fps``, or 25 fps is assumed with a warning.
@@ -65,7 +66,7 @@ if "OPENCV_LOG_LEVEL" not in os.environ:
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
 
 #: Suffixes (lower case) of the images read from a folder.
-IMAGE_SUFFIXES: tuple[str, ...] = (".jpg", ".jpeg", ".png")
+IMAGE_SUFFIXES: tuple[str, ...] = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
 
 #: Frame rate assumed for an image folder when none is given.
 DEFAULT_FPS: float = 25.0
