@@ -6,6 +6,7 @@ import importlib.util
 import os
 import subprocess
 import sys
+import warnings
 
 import cv2
 import numpy as np
@@ -237,6 +238,24 @@ def test_histogram_image_static_and_placed(full):
     np.testing.assert_allclose(ru.read_column(path, entity, "Transform3D:scale")[0][0],
                                [step, 1.0, 1.0])
     np.testing.assert_allclose(ru.read_column(path, entity, "x_edges")[0], EDGES)
+
+
+def test_a_one_frame_histogram_image_keeps_its_colours(tmp_path):
+    # an image one row high reads as one channel in Rerun (a warning, and a wrong image): a
+    # one-frame clip's heat-map goes in as two rows of half a frame
+    path = tmp_path / "one.rrd"
+    matrix = np.array([[0.0, 2.0, 1.0, 4.0]])
+    edges = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with Recording(path, app_id="trackcli") as rec:
+            rec.log_histogram_image("h", matrix, edges, first_frame=5)
+    fmt = ru.read_column(path, "h", "Image:format")[0][0]
+    assert (fmt["width"], fmt["height"]) == (4, 2)
+    buffer = np.array(ru.read_column(path, "h", "Image:buffer")[0][0], dtype=np.uint8).reshape(2, 4, 3)
+    np.testing.assert_array_equal(buffer, np.repeat(histogram_image(matrix), 2, axis=0))
+    assert ru.read_column(path, "h", "Transform3D:translation") == [[[0.0, 5.0, 0.0]]]
+    np.testing.assert_allclose(ru.read_column(path, "h", "Transform3D:scale")[0][0], [1.0, 0.5, 1.0])
 
 
 def test_params_values_and_yaml(full):

@@ -1056,10 +1056,14 @@ class Recording:
         step = np.diff(e)
         if not np.allclose(step, step[0], rtol=1e-6, atol=0.0):
             raise DataError("x_edges must be equally spaced for the histogram image")
+        # Rerun reads an image one row high as having one channel: a one-frame heat-map is
+        # stored as two rows of half a frame each
+        rows_per_frame = 2 if img.shape[0] == 1 else 1
+        img = np.repeat(img, rows_per_frame, axis=0)
         self._note(entity)
         self.stream.log(entity, rr.Image(img, color_model="RGB"), static=True)
         self.stream.log(entity, rr.Transform3D(translation=[float(e[0]), float(first_frame), 0.0],
-                                               scale=[float(step[0]), 1.0, 1.0]), static=True)
+                                               scale=[float(step[0]), 1.0 / rows_per_frame, 1.0]), static=True)
         self.stream.log(entity, rr.AnyValues(x_edges=e.tolist(), first_frame=int(first_frame)),
                         static=True)
 
