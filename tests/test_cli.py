@@ -191,6 +191,7 @@ def test_draw_missing_clip(tmp_path):
         ("a,b,c,d", "--box: expected comma-separated numbers"),
         ("40,20,0,80", "width and height must be positive"),
         ("500,500,30,30", "outside the 160x120 frame"),
+        ("60,50,5,5", "--box 60,50,5,5: spans only 5x5 px (at least 8 px each way)"),
         ("1,2,3,4,5", "--box: expected 4 numbers, got 5"),
         ("nan,2,30,40", "--box"),
     ],

@@ -355,7 +355,8 @@ def test_an_object_cut_by_the_box_is_not_taken_out_as_a_leak():
     [((10.0, 10.0, 0.0, 20.0), "width and height must be positive"),
      ((10.0, 10.0, 20.0, -5.0), "width and height must be positive"),
      ((500.0, 10.0, 40.0, 40.0), "outside the 160x120 frame"),
-     ((-100.0, -100.0, 103.0, 103.0), "outside the 160x120 frame")],
+     ((-100.0, -100.0, 103.0, 103.0), "outside the 160x120 frame"),
+     ((60.0, 50.0, 5.0, 30.0), "spans only 5x30 px")],
 )
 def test_box_errors(box, text):
     with pytest.raises(ConfigError, match=text):

@@ -258,8 +258,12 @@ def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *
         raise ConfigError(f"--box: width and height must be positive, got {w:g}x{h:g}")
     x0, y0 = int(round(max(0.0, x))), int(round(max(0.0, y)))
     x1, y1 = int(round(min(float(w_img), x + w))), int(round(min(float(h_img), y + h)))
-    if x1 - x0 < 8 or y1 - y0 < 8:
-        raise ConfigError(f"--box {x:g},{y:g},{w:g},{h:g}: lies (almost) outside the {w_img}x{h_img} frame")
+    if min(w, h) < MIN_OUTLINE_SIDE:
+        raise ConfigError(f"--box {x:g},{y:g},{w:g},{h:g}: spans only {w:g}x{h:g} px (at least "
+                          f"{MIN_OUTLINE_SIDE} px each way)")
+    if x1 - x0 < MIN_OUTLINE_SIDE or y1 - y0 < MIN_OUTLINE_SIDE:
+        raise ConfigError(f"--box {x:g},{y:g},{w:g},{h:g}: lies (almost) outside the {w_img}x{h_img} frame "
+                          f"(at least {MIN_OUTLINE_SIDE}x{MIN_OUTLINE_SIDE} px of it must be inside)")
     if min(x0, y0) <= EDGE_TOUCH or x1 >= w_img - EDGE_TOUCH or y1 >= h_img - EDGE_TOUCH:
         # the box reaches the frame's edge: GrabCut has no background on that side, and a
         # pocket of background enclosed by the object, the edge and the box's other sides
