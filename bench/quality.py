@@ -19,7 +19,8 @@ The dev set:
   of ``--seeds`` (the cluttered ``test`` clip, the walker of ``three_heads``), cached in
   ``--cache``;
 - every folder of ``--footage`` (default ``../shared/footage`` beside the repository, when
-  present) holding ``img/`` frames and ``groundtruth_rect.txt``.
+  present) holding ``img/`` frames and ``groundtruth_rect.txt`` (OTB's layout), or its frames
+  and ``groundtruth.txt`` (VOT's; polygons are scored by the rectangle around them).
 
 With ``--grey`` every clip is replaced by a grey copy of it (one-channel JPEG frames, as many
 public benchmark sequences are), with ``--scale F`` by a copy at F times its resolution, with
@@ -67,6 +68,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
+from trackcli.io.truth import TRUTH_FILE_NAMES  # noqa: E402
+from trackcli.io.video import IMAGE_SUFFIXES  # noqa: E402
 from trackcli.run.evaluate import load_track, load_truth, score_frames, summarise  # noqa: E402
 
 DEFAULT_FOOTAGE = REPO.parent / "shared" / "footage"
@@ -114,8 +117,10 @@ def footage_clips(footage: Path) -> list[Clip]:
     if not footage.is_dir():
         return clips
     for folder in sorted(p for p in footage.iterdir() if p.is_dir()):
-        truth = folder / "groundtruth_rect.txt"
-        if not (truth.is_file() and (folder / "img").is_dir()):
+        # OTB's layout (img/, groundtruth_rect.txt) or VOT's (frames and groundtruth.txt together)
+        truth = next((folder / n for n in TRUTH_FILE_NAMES if (folder / n).is_file()), None)
+        frames = (folder / "img").is_dir() or any(p.suffix.lower() in IMAGE_SUFFIXES for p in folder.iterdir())
+        if truth is None or not frames:
             continue
         gt = load_truth(truth)
         x, y, w, h = (float(v) for v in gt.box[0])

@@ -282,6 +282,19 @@ def test_box_file_nan_and_zero_lines(tmp_path):
     np.testing.assert_array_equal(truth.frame, np.arange(5))
 
 
+def test_box_file_vot_polygons_are_their_bounding_rectangles(tmp_path):
+    # VOT writes rotated boxes as four corners; a file may mix them with x,y,w,h lines
+    p = tmp_path / "groundtruth.txt"
+    p.write_text("10,20,40,20,40,60,10,60\n"  # axis-aligned: the box 10,20,30,40
+                 "25,10,45,30,25,50,5,30\n"  # a square turned 45 degrees about (25, 30)
+                 "nan,nan,nan,nan,nan,nan,nan,nan\n"
+                 "12,22,30,40\n")
+    truth = load_truth(p)
+    np.testing.assert_allclose(truth.box[[0, 1, 3]], [[10, 20, 30, 40], [5, 10, 40, 40], [12, 22, 30, 40]])
+    np.testing.assert_allclose(truth.centre[1], [25.0, 30.0])
+    np.testing.assert_array_equal(truth.present, [True, True, False, True])
+
+
 @pytest.mark.parametrize("name", ["groundtruth_rect.txt", "groundtruth.txt"])
 def test_folder_form(tmp_path, name):
     clip = tmp_path / "Clip"
@@ -356,8 +369,9 @@ def test_end_to_end_files(tmp_path):
 @pytest.mark.parametrize(
     "text, pattern",
     [
-        ("1,2,3,4\n5,6,7,8\n1,2,3\n", r"truth\.txt line 3: expected 4 numbers \(x,y,w,h\), got 3"),
-        ("1,2,3,4,5\n", r"line 1: expected 4 numbers \(x,y,w,h\), got 5"),
+        ("1,2,3,4\n5,6,7,8\n1,2,3\n", r"truth\.txt line 3: expected 4 numbers \(x,y,w,h\) or 8 \(a polygon"),
+        ("1,2,3,4,5\n", r"line 1: expected 4 numbers \(x,y,w,h\) or 8 .*, got 5"),
+        ("1,2,3,4,5,6,7,x\n", r"line 1: y4 must be a number, got 'x'"),
         ("1,2,3,4\n1,two,3,4\n", r"line 2: y must be a number, got 'two'"),
         ("1,,3,4\n", r"line 1: empty field y"),
         ("1,2,3,4\n\n5,6,7,8\n", r"line 2: blank line"),

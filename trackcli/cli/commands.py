@@ -1019,7 +1019,8 @@ def eval_cmd(ctx, tracks, truth, threshold, lost_threshold, object_id, plot_path
     """Score estimates PRED (one or more track CSVs) against ground truth TRUTH.
 
     TRUTH is a trackcli truth CSV (sample_data/*.truth.csv), a benchmark box file (one
-    'x,y,w,h' line per frame, comma or whitespace separated), or a folder holding
+    'x,y,w,h' line per frame, comma or whitespace separated; VOT's 8-number polygons are
+    scored by the rectangle around them), or a folder holding
     groundtruth_rect.txt / groundtruth.txt.  Frames are matched by index; when a track and
     the truth cover different frames, a warning says which frames were scored.
 

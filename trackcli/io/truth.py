@@ -347,12 +347,14 @@ _BOX_SPLIT = re.compile(r"\s*,\s*|\s+")
 
 
 def _load_box_file(path: Path, text: str) -> GroundTruth:
+    """One ``x,y,w,h`` box per line, or a VOT polygon ``x1,y1,...,x4,y4`` (its bounding box)."""
     lines = text.splitlines()
     while lines and not lines[-1].strip():
         lines.pop()
     if not lines:
         raise InputError(f"{path}: empty truth file (expected one x,y,w,h line per frame)")
     boxes = np.empty((len(lines), 4))
+    polygons = 0
     for i, line in enumerate(lines):
         where = f"{path} line {i + 1}"
         stripped = line.strip()
@@ -361,14 +363,24 @@ def _load_box_file(path: Path, text: str) -> GroundTruth:
                 f"{where}: blank line inside the box list (write NaN,NaN,NaN,NaN for a frame without the target)"
             )
         tokens = _BOX_SPLIT.split(stripped)
-        if len(tokens) != 4:
-            raise InputError(f"{where}: expected 4 numbers (x,y,w,h), got {len(tokens)}")
-        for j, (token, name) in enumerate(zip(tokens, "xywh")):
+        if len(tokens) not in (4, 8):
+            raise InputError(f"{where}: expected 4 numbers (x,y,w,h) or 8 (a polygon x1,y1,...,x4,y4), "
+                             f"got {len(tokens)}")
+        names = "xywh" if len(tokens) == 4 else [f"{a}{k}" for k in range(1, 5) for a in "xy"]
+        for token, name in zip(tokens, names):
             if token == "":
-                raise InputError(f"{where}: empty field {name} (expected 4 numbers x,y,w,h)")
-            boxes[i, j] = _number(token, where, name)
+                raise InputError(f"{where}: empty field {name} (expected {len(tokens)} numbers)")
+        values = np.array([_number(token, where, name) for token, name in zip(tokens, names)])
+        if len(tokens) == 8:
+            # a rotated box as in VOT: scored by the rectangle around it (NaN: no target)
+            polygons += 1
+            xs, ys = values[0::2], values[1::2]
+            values = np.array([xs.min(), ys.min(), xs.max() - xs.min(), ys.max() - ys.min()])
+        boxes[i] = values
         if boxes[i, 2] < 0 or boxes[i, 3] < 0:
             raise InputError(f"{where}: w and h must be >= 0, got {boxes[i, 2]:g}, {boxes[i, 3]:g}")
+    if polygons:
+        log.info("%s: %d polygon lines scored by their bounding rectangles", path, polygons)
     return GroundTruth.from_boxes(boxes, source=str(path))
 
 
@@ -440,7 +452,8 @@ def load_truth(path: PathLike, *, object_id: int = 0) -> GroundTruth:
     path : str or os.PathLike
         A trackcli truth CSV (first line a header naming ``frame``), a benchmark box file
         (one ``x,y,w,h`` line per frame, frame 0 first; commas, tabs or spaces; NaN or
-        ``0,0,0,0`` lines mark frames without the target), or a folder containing one of
+        ``0,0,0,0`` lines mark frames without the target; a line of 8 numbers is a VOT polygon
+        ``x1,y1,...,x4,y4``, read as the rectangle around it), or a folder containing one of
         :data:`TRUTH_FILE_NAMES`.
     object_id : int
         Which object of a trackcli truth CSV to read (column ``object``); ignored for box

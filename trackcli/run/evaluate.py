@@ -14,6 +14,8 @@ Two inputs meet here:
      chosen, ``0`` by default) and ``visible`` (the visible fraction of the object, 0 to 1);
   2. a benchmark box file (``groundtruth_rect.txt`` as in OTB-style folders): one ``x,y,w,h``
      line per frame, the first line being frame 0, fields separated by commas, tabs or spaces;
+     a line of 8 numbers is a rotated box as VOT writes it (``x1,y1,...,x4,y4``), scored by the
+     axis-aligned rectangle around it;
   3. a folder holding ``groundtruth_rect.txt`` or ``groundtruth.txt``.
 
 Boxes are ``(x, y, w, h)`` in pixels in the package's image coordinates (``x`` right, ``y``
