@@ -26,7 +26,8 @@ With ``--grey`` every clip is replaced by a grey copy of it (one-channel JPEG fr
 public benchmark sequences are), with ``--scale F`` by a copy at F times its resolution, with
 ``--every K`` by a copy of every K-th frame (K times faster motion), with ``--start F`` by the
 clip from F of its length on, with ``--reverse`` by the clip played backwards from its last
-frame (or from F back to its start); the options combine, and
+frame (or from F back to its start), with ``--noise S`` by a copy with Gaussian noise of S grey
+levels, with ``--jpeg Q`` by a copy stored at JPEG quality Q; the options combine, and
 the copies are cached in ``--cache``.  They show how far the defaults hold on footage of the
 same kind but not the same make.
 
@@ -42,7 +43,8 @@ on trackcli and are cached.
 Usage::
 
     python bench/quality.py [--seeds 1,2,3] [--footage DIR] [--peers] [--only NAME ...]
-        [--json FILE] [--grey] [--scale F] [--every K] [--start F] [--reverse] [--outline] [--runs K]
+        [--json FILE] [--grey] [--scale F] [--every K] [--start F] [--reverse] [--noise S] [--jpeg Q]
+        [--outline] [--runs K]
         [-- EXTRA TRACK OPTIONS]
 
 Everything after ``--`` is passed to ``trackcli track`` (e.g. ``-- --particles 1000``).
@@ -129,7 +131,7 @@ def footage_clips(footage: Path) -> list[Clip]:
 
 
 def variant_copy(clip: Clip, cache: Path, *, grey: bool = False, scale: float = 1.0, every: int = 1,
-                 reverse: bool = False, start: float = 0.0) -> Clip:
+                 reverse: bool = False, start: float = 0.0, noise: float = 0.0, quality: int = 95) -> Clip:
     """The clip changed as footage of the same kind may be, cached under ``cache/variants``:
 
     - ``grey``: its frames in grey (one-channel JPEGs, as grey benchmark sequences ship);
@@ -141,18 +143,23 @@ def variant_copy(clip: Clip, cache: Path, *, grey: bool = False, scale: float = 
       clip's length (another first frame, another template, the rest of the clip ahead);
     - ``reverse``: played backwards, from the last frame with the object in view (after
       ``start``: from there back to the first frame).  A clip run backwards is a new clip of
-      the same kind: another first frame to draw the template on, the motion reversed.
+      the same kind: another first frame to draw the template on, the motion reversed;
+    - ``noise``: Gaussian noise of this standard deviation (grey levels) added to every pixel
+      and channel (a dim scene, a small sensor), drawn from a stream seeded by the frame;
+    - ``quality``: stored at this JPEG quality instead of 95 (strong compression: blocks,
+      ringing and smeared colour, as in streamed or re-encoded footage).
 
-    Frames go into an image folder (JPEG quality 95) and the truth beside it: a trackcli truth
+    Frames go into an image folder (JPEG quality 95 unless ``quality``) and the truth beside it: a trackcli truth
     CSV for the synthetic clips (their centroids are scored), a box file for the others (box
     centres are scored)."""
     import cv2
 
     from trackcli.io.video import open_video
 
-    if not grey and scale == 1.0 and every == 1 and not reverse and start == 0.0:
+    if not grey and scale == 1.0 and every == 1 and not reverse and start == 0.0 and not noise and quality == 95:
         return clip
     tag = "-".join([*(["grey"] if grey else []), *([f"x{scale:g}"] if scale != 1.0 else []),
+                    *([f"noise{noise:g}"] if noise else []), *([f"q{quality}"] if quality != 95 else []),
                     *([f"every{every}"] if every != 1 else []), *([f"from{start:g}"] if start else []),
                     *(["reverse"] if reverse else [])])
     folder = cache / "variants" / tag / clip.name.replace("@", "-")
@@ -184,8 +191,11 @@ def variant_copy(clip: Clip, cache: Path, *, grey: bool = False, scale: float = 
                     frame = cv2.resize(frame, size, interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR)
                 if grey:
                     frame = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+                if noise:
+                    grain = np.random.default_rng(f.index).normal(0.0, noise, frame.shape)
+                    frame = np.clip(frame + grain, 0, 255).astype(np.uint8)
                 cv2.imwrite(str(folder / "img" / f"{position[f.index]:05d}.jpg"), frame,
-                            [cv2.IMWRITE_JPEG_QUALITY, 95])
+                            [cv2.IMWRITE_JPEG_QUALITY, quality])
         idx = [row[k] for k in order]
         rows = zip(range(len(order)), truth.centre[idx] * scale, truth.box[idx] * scale, truth.present[idx])
         if truth.centre_kind == "centroid":  # a trackcli truth CSV: the centroid is scored
@@ -455,6 +465,10 @@ def main() -> None:
     ap.add_argument("--start", type=float, default=0.0,
                     help="track the clips from the first frame in view at or after this share of their length "
                          "(e.g. 0.5: from the middle; with --reverse, back from there)")
+    ap.add_argument("--noise", type=float, default=0.0,
+                    help="track copies of the clips with Gaussian noise of this standard deviation (grey levels) added")
+    ap.add_argument("--jpeg", type=int, default=95,
+                    help="store the copies at this JPEG quality (e.g. 20: strong compression; default 95)")
     ap.add_argument("--outline", action="store_true",
                     help="draw the templates from the true outline of the first frame (draw --mask) instead of its box; "
                          "clips without one (no masks/) are left out")
@@ -467,12 +481,17 @@ def main() -> None:
     clips = synthetic_clips(seeds, args.cache) + footage_clips(args.footage)
     if args.only:
         clips = [c for c in clips if any(c.name.startswith(o) for o in args.only)]
-    if not (0.05 <= args.scale <= 4) or args.every < 1 or not (0.0 <= args.start < 1.0):
-        ap.error("--scale must be in [0.05, 4], --every at least 1 and --start in [0, 1)")
-    if args.outline and (args.grey or args.scale != 1.0 or args.every != 1 or args.reverse or args.start):
-        ap.error("--outline goes with the clips as they are (not with --grey, --scale, --every, --reverse, --start)")
+    if (not (0.05 <= args.scale <= 4) or args.every < 1 or not (0.0 <= args.start < 1.0)
+            or not (0.0 <= args.noise <= 100.0) or not (1 <= args.jpeg <= 100)):
+        ap.error("--scale must be in [0.05, 4], --every at least 1, --start in [0, 1), --noise in [0, 100] "
+                 "and --jpeg in [1, 100]")
+    changed = (args.grey or args.scale != 1.0 or args.every != 1 or args.reverse or args.start or args.noise
+               or args.jpeg != 95)
+    if args.outline and changed:
+        ap.error("--outline goes with the clips as they are (not with --grey, --scale, --every, --reverse, --start, "
+                 "--noise, --jpeg)")
     clips = [variant_copy(c, args.cache, grey=args.grey, scale=args.scale, every=args.every, reverse=args.reverse,
-                          start=args.start) for c in clips]
+                          start=args.start, noise=args.noise, quality=args.jpeg) for c in clips]
     if args.outline:
         clips = [c for c in clips if c.kind == "synthetic" or (c.path / "masks").is_dir()]
     peers = peer_results(clips, args.cache) if args.peers else {}
