@@ -210,6 +210,30 @@ def test_colour_peaks_find_an_object_coloured_region_of_the_objects_size():
     assert strengths[0] > 1.0
 
 
+def test_on_grey_footage_a_smooth_object_is_told_from_texture_of_its_own_grey_level():
+    # a smoothly shaded disc on a grainy wall with the same grey levels (uniform on 70-190
+    # both): the grey-level histogram alone cannot tell them apart, the local texture can
+    rng = np.random.default_rng(8)
+    frame = rng.uniform(70.0, 190.0, (H, W))
+    yy, xx = np.mgrid[0:H, 0:W]
+    disc = ((xx - 240.0) / 30.0) ** 2 + ((yy - 120.0) / 40.0) ** 2 <= 1.0
+    frame[disc] = np.sort(rng.uniform(70.0, 190.0, np.count_nonzero(disc)))  # shaded from top to bottom
+    frame = cv2.cvtColor(np.clip(frame, 0, 255).astype(np.uint8), cv2.COLOR_GRAY2BGR)
+    judge, _, _ = presence_for(frame, ellipse_space(240, 120, 30, 40))
+    assert judge.app.grey
+    cmap = judge.app.colour_map(frame)
+    inside = np.zeros((H, W), np.uint8)
+    cv2.ellipse(inside, ((240.0, 120.0), (48.0, 68.0), 0.0), 1, -1)  # the disc less its rim
+    outside = np.ones((H, W), np.uint8)
+    cv2.ellipse(outside, ((240.0, 120.0), (84.0, 104.0), 0.0), 0, -1)
+    assert cmap[inside > 0].mean() > 1.0 and cmap[outside > 0].mean() < -1.0
+    # the grey levels alone: inside and outside alike
+    levels = observe.hsv_bins(frame, grey=True) % observe.GREY_BINS
+    share_in = np.bincount(levels[disc], minlength=observe.GREY_BINS) / np.count_nonzero(disc)
+    share_out = np.bincount(levels[outside > 0], minlength=observe.GREY_BINS) / np.count_nonzero(outside)
+    assert 0.5 * np.abs(share_in - share_out).sum() < 0.1
+
+
 # ---------------------------------------------------------------------------------------------
 # Hand-set dynamics in units of the object
 

@@ -38,7 +38,10 @@ mixture of a ring around the template and the rest of the frame), in HSV with 8 
 saturation × 4 value bins (hue and saturation carry most of the information and change little
 with lighting; the coarse value bins separate dark from light greys, whose hue is
 meaningless; 256 bins in all, so that mapping a frame is a byte lookup), give the log-ratio
-``L(c) = log p_fg(c) / p_bg(c)``, clipped to ``[-3, 3]``.  Every frame is mapped to ``L`` once (a back-projection), and along
+``L(c) = log p_fg(c) / p_bg(c)``, clipped to ``[-3, 3]``.  On grey footage hue and saturation
+carry nothing; the bins are then 32 grey levels × 8 levels of local texture (the standard
+deviation of the grey level over a Gaussian window of 2 px), so that a smooth face or ball is
+told from a wall or pavement of its own grey level.  Every frame is mapped to ``L`` once (a back-projection), and along
 each normal ``L`` is averaged at a few offsets inside and outside the curve; the colour term of
 normal ``i`` is ``c_i = (mean_inside L - mean_outside L) / 2``, in ``[-3, 3]``: positive when
 the curve separates object-coloured from background-coloured pixels.  The models are kept as
@@ -76,14 +79,19 @@ from trackcli.errors import ConfigError, DataError
 from trackcli.observe.kernels import colour_lookup, count_line_features, discriminant_curves, discriminant_normals
 from trackcli.observe.measure import _as_image, _as_normals, _remap_rows, _scan_chunks
 
-__all__ = ["Appearance", "FrameEvidence", "colour_peaks", "confidence", "evidence", "feature_density", "hsv_bins",
-           "learn_appearance", "normals_with_features", "per_normal", "per_normal_reference", "presence",
-           "reacquisition_proposal", "score"]
+__all__ = ["Appearance", "FrameEvidence", "colour_peaks", "confidence", "evidence", "feature_density",
+           "grey_texture", "hsv_bins", "learn_appearance", "normals_with_features", "per_normal",
+           "per_normal_reference", "presence", "reacquisition_proposal", "score"]
 
 #: HSV histogram bins (hue, saturation, value).
 HIST_BINS = (8, 8, 4)
-#: Grey-level bins of the intensity histogram that replaces the HSV one on grey footage.
+#: Grey-level bins of the histogram that replaces the HSV one on grey footage ...
 GREY_BINS = 32
+#: ... times bins of the local texture: the standard deviation of the grey level over a
+#: Gaussian window of sigma :data:`TEXTURE_SIGMA` px, cut at :data:`TEXTURE_EDGES` grey levels
+#: (a smooth face or ball against a textured wall or pavement of the same grey)
+TEXTURE_SIGMA = 2.0
+TEXTURE_EDGES = (2, 4, 7, 11, 16, 23, 32)
 #: A frame is grey (a monochrome clip, e.g. a grey JPEG sequence read as BGR) when fewer than
 #: :data:`GREY_SHARE` of its pixels have channels more than :data:`GREY_SPREAD` grey levels apart.
 GREY_SPREAD = 8
@@ -121,9 +129,9 @@ class Appearance:
     colour_offsets : ndarray of shape (K,), float32
         Positive offsets (px) of the colour samples along each normal.
     grey : bool
-        The template's frame is grey: the bins are :data:`GREY_BINS` grey levels (the value
-        channel) instead of the HSV bins of :data:`HIST_BINS`, whose hue and saturation carry
-        nothing there.
+        The template's frame is grey: the bins are :data:`GREY_BINS` grey levels times the bins
+        of the local texture (:func:`grey_texture`, :data:`TEXTURE_EDGES`) instead of the HSV
+        bins of :data:`HIST_BINS`, whose hue and saturation carry nothing there.
     """
 
     polarity: np.ndarray
@@ -139,7 +147,7 @@ class Appearance:
         The same as ``cv2.LUT(hsv_bins(frame), lut)``, in one compiled pass after the HSV
         conversion.
         """
-        hsv = cv2.cvtColor(_bgr(frame_bgr), cv2.COLOR_BGR2HSV)
+        hsv = grey_texture(frame_bgr) if self.grey else cv2.cvtColor(_bgr(frame_bgr), cv2.COLOR_BGR2HSV)
         out = np.empty(hsv.shape[:2], np.float32)
         shares = _GREY_SHARES if self.grey else _BIN_SHARES
         colour_lookup(hsv, shares, np.ascontiguousarray(self.lut, dtype=np.float32).reshape(-1), out)
@@ -170,9 +178,12 @@ _BIN_TABLE[0, :, 1] = ((np.arange(256) * HIST_BINS[1]) // 256) * HIST_BINS[2]
 _BIN_TABLE[0, :, 2] = (np.arange(256) * HIST_BINS[2]) // 256
 _SUM_CHANNELS = np.ones((1, 3), np.float32)
 _BIN_SHARES = np.ascontiguousarray(_BIN_TABLE[0])  # (256, 3): the same table for the compiled look-up
-# On grey frames only the value channel (the grey level) counts, in GREY_BINS bins.
+# On grey frames the grey level (in the third channel of grey_texture) counts in GREY_BINS
+# bins and its local standard deviation (the second) in len(TEXTURE_EDGES) + 1 bins.
 _GREY_TABLE = np.zeros((1, 256, 3), np.uint8)
+_GREY_TABLE[0, :, 1] = np.searchsorted(TEXTURE_EDGES, np.arange(256), side="right") * GREY_BINS
 _GREY_TABLE[0, :, 2] = (np.arange(256) * GREY_BINS) // 256
+assert GREY_BINS * (len(TEXTURE_EDGES) + 1) <= 256
 _GREY_SHARES = np.ascontiguousarray(_GREY_TABLE[0])
 
 
@@ -195,10 +206,26 @@ def is_grey(frame_bgr: np.ndarray, region: np.ndarray | None = None) -> bool:
     return True
 
 
+def grey_texture(frame_bgr: np.ndarray) -> np.ndarray:
+    """A grey frame as three uint8 channels: 0, the local standard deviation of the grey level
+    (Gaussian window of sigma :data:`TEXTURE_SIGMA`), the grey level."""
+    f = np.asarray(frame_bgr)
+    g = f if f.ndim == 2 else cv2.cvtColor(_bgr(f), cv2.COLOR_BGR2GRAY)
+    g32 = g.astype(np.float32)
+    mean = cv2.GaussianBlur(g32, (0, 0), TEXTURE_SIGMA)
+    var = cv2.GaussianBlur(g32 * g32, (0, 0), TEXTURE_SIGMA) - mean * mean
+    sd = np.sqrt(np.maximum(var, 0.0), out=var)
+    out = np.zeros(g.shape + (3,), np.uint8)
+    out[..., 1] = np.minimum(sd + 0.5, 255.0)
+    out[..., 2] = g
+    return out
+
+
 def hsv_bins(frame_bgr: np.ndarray, *, grey: bool = False) -> np.ndarray:
     """Flat HSV histogram bin of every pixel: uint8 (H, W) in ``[0, prod(HIST_BINS))``; with
-    ``grey``, the grey-level bin in ``[0, GREY_BINS)``."""
-    hsv = cv2.cvtColor(_bgr(frame_bgr), cv2.COLOR_BGR2HSV)
+    ``grey``, the bin of grey level and texture (:func:`grey_texture`) in
+    ``[0, GREY_BINS * (len(TEXTURE_EDGES) + 1))``."""
+    hsv = grey_texture(frame_bgr) if grey else cv2.cvtColor(_bgr(frame_bgr), cv2.COLOR_BGR2HSV)
     return cv2.transform(cv2.LUT(hsv, _GREY_TABLE if grey else _BIN_TABLE), _SUM_CHANNELS)
 
 
@@ -250,7 +277,7 @@ def _colour_model(frame_bgr: np.ndarray, inside: np.ndarray, size: float, *, gre
     n = int(np.prod(HIST_BINS))
     fg, bg_ring, bg_all = (np.bincount(bins[m.reshape(-1) > 0], minlength=n).astype(np.float64)
                            for m in (core, ring, rest))
-    nbins = float(GREY_BINS if grey else n)
+    nbins = float(GREY_BINS * (len(TEXTURE_EDGES) + 1) if grey else n)
     # add-a-half smoothing (a Dirichlet prior) keeps unseen colours neutral rather than infinite
     pf = (fg + 0.5) / (fg.sum() + 0.5 * nbins)
     # background: half the ring around the object (what it must be told from where it is),
