@@ -227,7 +227,8 @@ def test_on_grey_footage_a_smooth_object_is_told_from_texture_of_its_own_grey_le
     outside = np.ones((H, W), np.uint8)
     cv2.ellipse(outside, ((240.0, 120.0), (84.0, 104.0), 0.0), 0, -1)
     assert cmap[inside > 0].mean() > 1.0 and cmap[outside > 0].mean() < -1.0
-    # the grey levels alone: inside and outside alike
+    # the grey levels alone: inside and outside alike (the flat bin is level + GREY_BINS x texture)
+    assert observe.GREY_BINS * (len(observe.TEXTURE_EDGES) + 1) <= 256
     levels = observe.hsv_bins(frame, grey=True) % observe.GREY_BINS
     share_in = np.bincount(levels[disc], minlength=observe.GREY_BINS) / np.count_nonzero(disc)
     share_out = np.bincount(levels[outside > 0], minlength=observe.GREY_BINS) / np.count_nonzero(outside)

@@ -144,8 +144,8 @@ class Appearance:
     def colour_map(self, frame_bgr: np.ndarray) -> np.ndarray:
         """The colour log-ratio ``L`` of every pixel of a frame: float32 (H, W) in [-3, 3].
 
-        The same as ``cv2.LUT(hsv_bins(frame), lut)``, in one compiled pass after the HSV
-        conversion.
+        The same as ``cv2.LUT(hsv_bins(frame, grey=self.grey), lut)``, in one compiled pass
+        after the HSV conversion (on grey footage, after :func:`grey_texture`).
         """
         hsv = grey_texture(frame_bgr) if self.grey else cv2.cvtColor(_bgr(frame_bgr), cv2.COLOR_BGR2HSV)
         out = np.empty(hsv.shape[:2], np.float32)
@@ -179,11 +179,11 @@ _BIN_TABLE[0, :, 2] = (np.arange(256) * HIST_BINS[2]) // 256
 _SUM_CHANNELS = np.ones((1, 3), np.float32)
 _BIN_SHARES = np.ascontiguousarray(_BIN_TABLE[0])  # (256, 3): the same table for the compiled look-up
 # On grey frames the grey level (in the third channel of grey_texture) counts in GREY_BINS
-# bins and its local standard deviation (the second) in len(TEXTURE_EDGES) + 1 bins.
+# bins and its local standard deviation (the second) in len(TEXTURE_EDGES) + 1 bins; the flat
+# bin, grey level + GREY_BINS x texture, fits a byte (32 x 8 = 256).
 _GREY_TABLE = np.zeros((1, 256, 3), np.uint8)
 _GREY_TABLE[0, :, 1] = np.searchsorted(TEXTURE_EDGES, np.arange(256), side="right") * GREY_BINS
 _GREY_TABLE[0, :, 2] = (np.arange(256) * GREY_BINS) // 256
-assert GREY_BINS * (len(TEXTURE_EDGES) + 1) <= 256
 _GREY_SHARES = np.ascontiguousarray(_GREY_TABLE[0])
 
 
