@@ -344,6 +344,7 @@ def _track_outlines(path: Path, header: list[str], rows) -> np.ndarray | None:
 
 
 _BOX_SPLIT = re.compile(r"\s*,\s*|\s+")
+_POLYGON_FIELDS = tuple(f"{a}{k}" for k in range(1, 5) for a in "xy")  # x1, y1, ..., x4, y4
 
 
 def _load_box_file(path: Path, text: str) -> GroundTruth:
@@ -366,7 +367,7 @@ def _load_box_file(path: Path, text: str) -> GroundTruth:
         if len(tokens) not in (4, 8):
             raise InputError(f"{where}: expected 4 numbers (x,y,w,h) or 8 (a polygon x1,y1,...,x4,y4), "
                              f"got {len(tokens)}")
-        names = "xywh" if len(tokens) == 4 else [f"{a}{k}" for k in range(1, 5) for a in "xy"]
+        names = "xywh" if len(tokens) == 4 else _POLYGON_FIELDS
         for token, name in zip(tokens, names):
             if token == "":
                 raise InputError(f"{where}: empty field {name} (expected {len(tokens)} numbers)")

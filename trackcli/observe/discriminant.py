@@ -80,8 +80,8 @@ from trackcli.observe.kernels import colour_lookup, count_line_features, discrim
 from trackcli.observe.measure import _as_image, _as_normals, _remap_rows, _scan_chunks
 
 __all__ = ["Appearance", "FrameEvidence", "colour_peaks", "confidence", "evidence", "feature_density",
-           "grey_texture", "hsv_bins", "learn_appearance", "normals_with_features", "per_normal",
-           "per_normal_reference", "presence", "reacquisition_proposal", "score"]
+           "grey_texture", "hsv_bins", "learn_appearance", "local_mean_deviation", "normals_with_features",
+           "per_normal", "per_normal_reference", "presence", "reacquisition_proposal", "score"]
 
 #: HSV histogram bins (hue, saturation, value).
 HIST_BINS = (8, 8, 4)
@@ -92,6 +92,7 @@ GREY_BINS = 32
 #: (a smooth face or ball against a textured wall or pavement of the same grey)
 TEXTURE_SIGMA = 2.0
 TEXTURE_EDGES = (2, 4, 7, 11, 16, 23, 32)
+TEXTURE_BINS = len(TEXTURE_EDGES) + 1
 #: A frame is grey (a monochrome clip, e.g. a grey JPEG sequence read as BGR) when fewer than
 #: :data:`GREY_SHARE` of its pixels have channels more than :data:`GREY_SPREAD` grey levels apart.
 GREY_SPREAD = 8
@@ -179,7 +180,7 @@ _BIN_TABLE[0, :, 2] = (np.arange(256) * HIST_BINS[2]) // 256
 _SUM_CHANNELS = np.ones((1, 3), np.float32)
 _BIN_SHARES = np.ascontiguousarray(_BIN_TABLE[0])  # (256, 3): the same table for the compiled look-up
 # On grey frames the grey level (in the third channel of grey_texture) counts in GREY_BINS
-# bins and its local standard deviation (the second) in len(TEXTURE_EDGES) + 1 bins; the flat
+# bins and its local standard deviation (the second) in TEXTURE_BINS bins; the flat
 # bin, grey level + GREY_BINS x texture, fits a byte (32 x 8 = 256).
 _GREY_TABLE = np.zeros((1, 256, 3), np.uint8)
 _GREY_TABLE[0, :, 1] = np.searchsorted(TEXTURE_EDGES, np.arange(256), side="right") * GREY_BINS
@@ -206,15 +207,21 @@ def is_grey(frame_bgr: np.ndarray, region: np.ndarray | None = None) -> bool:
     return True
 
 
+def local_mean_deviation(grey: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """The local mean and standard deviation of a grey image over a Gaussian window of
+    ``sigma`` px: float32 ``(mean, sd)``, each the image's shape."""
+    g = np.asarray(grey, dtype=np.float32)
+    mean = cv2.GaussianBlur(g, (0, 0), sigma)
+    var = cv2.GaussianBlur(g * g, (0, 0), sigma) - mean * mean
+    return mean, np.sqrt(np.maximum(var, 0.0), out=var)
+
+
 def grey_texture(frame_bgr: np.ndarray) -> np.ndarray:
     """A grey frame as three uint8 channels: 0, the local standard deviation of the grey level
     (Gaussian window of sigma :data:`TEXTURE_SIGMA`), the grey level."""
     f = np.asarray(frame_bgr)
     g = f if f.ndim == 2 else cv2.cvtColor(_bgr(f), cv2.COLOR_BGR2GRAY)
-    g32 = g.astype(np.float32)
-    mean = cv2.GaussianBlur(g32, (0, 0), TEXTURE_SIGMA)
-    var = cv2.GaussianBlur(g32 * g32, (0, 0), TEXTURE_SIGMA) - mean * mean
-    sd = np.sqrt(np.maximum(var, 0.0), out=var)
+    _, sd = local_mean_deviation(g, TEXTURE_SIGMA)
     out = np.zeros(g.shape + (3,), np.uint8)
     out[..., 1] = np.minimum(sd + 0.5, 255.0)
     out[..., 2] = g
@@ -224,7 +231,7 @@ def grey_texture(frame_bgr: np.ndarray) -> np.ndarray:
 def hsv_bins(frame_bgr: np.ndarray, *, grey: bool = False) -> np.ndarray:
     """Flat HSV histogram bin of every pixel: uint8 (H, W) in ``[0, prod(HIST_BINS))``; with
     ``grey``, the bin of grey level and texture (:func:`grey_texture`) in
-    ``[0, GREY_BINS * (len(TEXTURE_EDGES) + 1))``."""
+    ``[0, GREY_BINS * TEXTURE_BINS)``."""
     hsv = grey_texture(frame_bgr) if grey else cv2.cvtColor(_bgr(frame_bgr), cv2.COLOR_BGR2HSV)
     return cv2.transform(cv2.LUT(hsv, _GREY_TABLE if grey else _BIN_TABLE), _SUM_CHANNELS)
 
@@ -277,7 +284,7 @@ def _colour_model(frame_bgr: np.ndarray, inside: np.ndarray, size: float, *, gre
     n = int(np.prod(HIST_BINS))
     fg, bg_ring, bg_all = (np.bincount(bins[m.reshape(-1) > 0], minlength=n).astype(np.float64)
                            for m in (core, ring, rest))
-    nbins = float(GREY_BINS * (len(TEXTURE_EDGES) + 1) if grey else n)
+    nbins = float(GREY_BINS * TEXTURE_BINS if grey else n)
     # add-a-half smoothing (a Dirichlet prior) keeps unseen colours neutral rather than infinite
     pf = (fg + 0.5) / (fg.sum() + 0.5 * nbins)
     # background: half the ring around the object (what it must be told from where it is),

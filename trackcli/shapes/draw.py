@@ -402,11 +402,11 @@ def texture_image(image_bgr: np.ndarray) -> np.ndarray:
     deviation times :data:`TEXTURE_GAIN` (Gaussian window of sigma :data:`TEXTURE_SIGMA`), uint8."""
     import cv2
 
+    from trackcli.observe.discriminant import local_mean_deviation
+
     g = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2GRAY).astype(np.float32)
-    mean = cv2.GaussianBlur(g, (0, 0), TEXTURE_SIGMA)
-    var = cv2.GaussianBlur(g * g, (0, 0), TEXTURE_SIGMA) - mean * mean
-    sd = np.sqrt(np.maximum(var, 0.0)) * TEXTURE_GAIN
-    return np.clip(np.dstack([g, mean, sd]) + 0.5, 0, 255).astype(np.uint8)
+    mean, sd = local_mean_deviation(g, TEXTURE_SIGMA)
+    return np.clip(np.dstack([g, mean, sd * TEXTURE_GAIN]) + 0.5, 0, 255).astype(np.uint8)
 
 
 def texture_separation(texture: np.ndarray, mask: np.ndarray, box: tuple[float, float, float, float], *,

@@ -248,7 +248,7 @@ class CondensationTracker(Tracker):
                      "beyond the frame's edge", where, area[0], area[2] - 1, area[1], area[3] - 1)
         if self.judge.app.grey:
             log.info("%sframe %d has no colour: the colour model is a histogram of %d grey levels x %d levels "
-                     "of local texture", where, frame.index, observe.GREY_BINS, len(observe.TEXTURE_EDGES) + 1)
+                     "of local texture", where, frame.index, observe.GREY_BINS, observe.TEXTURE_BINS)
         if not self.judge.reference > 0:
             log.warning("%sthe template scores %.2f per normal on frame %d, no more object-like than clutter: "
                         "the lost verdict and the confidence will be unreliable (a tighter outline, or the "
