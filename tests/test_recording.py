@@ -564,3 +564,34 @@ def test_pandas_is_imported_by_a_recording_only_where_the_check_is_kept(tmp_path
     assert imported == ("False" if check == "0" else "True")
     assert values == "[1.0, 2.0]"
     assert (tmp_path / "r.rrd").stat().st_size > 0
+
+
+# ---------------------------------------------------------------------------
+# Frames kept as their source's JPEG
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("frames_mode", ["auto", "jpeg"])
+def test_track_keeps_the_source_jpeg_frames_unless_asked_to_encode(tmp_path, ellipse_clip, frames_mode):
+    """Under ``output.frames: auto`` the recording of an MJPG clip holds each frame's stored JPEG
+    byte for byte (no encoding again); ``jpeg`` encodes every frame at ``jpeg_quality``."""
+    from click.testing import CliRunner
+
+    from trackcli.cli import cli
+    from trackcli.io.video import open_video
+
+    template, out = tmp_path / "t.yaml", tmp_path / "out"
+    config = tmp_path / "c.yaml"
+    config.write_text(f"output:\n  frames: {frames_mode}\n  jpeg_quality: 30\n")
+    for args in (["draw", ellipse_clip, "--ellipse", "70,60,28,36", "-o", template],
+                 ["track", ellipse_clip, "--template", template, "-c", config, "-o", out]):
+        result = CliRunner().invoke(cli, [str(a) for a in args])
+        assert result.exit_code == 0, result.output
+    stored = [f.encoded for f in open_video(ellipse_clip).frames(encoded=True)]
+    assert all(s is not None for s in stored)
+    blobs = [bytes(cell[0]) for cell in ru.read_column(out / "ellipse.condensation.rrd", "video", "EncodedImage:blob")]
+    assert len(blobs) == len(stored)
+    if frames_mode == "auto":
+        assert blobs == stored
+    else:
+        assert all(b != s and len(b) < len(s) for b, s in zip(blobs, stored, strict=True))

@@ -426,3 +426,75 @@ def test_rerun_video_asset_detection(tmp_path, clips):
     assert not open_video(mp4v).is_rerun_video_asset()
     assert not open_video(clips["file"]).is_rerun_video_asset()
     assert not open_video(clips["folder"]).is_rerun_video_asset()
+
+
+# -- frames as the source stores them -------------------------------------------------------
+
+
+def _jpeg(image: np.ndarray, quality: int = 90) -> bytes:
+    ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    assert ok
+    return buf.tobytes()
+
+
+def _segments(data: bytes) -> list[tuple[int, int]]:
+    """(marker, offset) of a JPEG's segments up to its scan."""
+    out, i = [], 2
+    while data[i + 1] != 0xDA:
+        out.append((data[i + 1], i))
+        i += 2 + int.from_bytes(data[i + 2:i + 4], "big")
+    return out
+
+
+def test_storable_jpeg_takes_plain_colour_and_grey_jpegs_only():
+    from trackcli.io.video import storable_jpeg
+
+    picture = np.random.default_rng(0).integers(0, 255, (24, 32, 3), dtype=np.uint8)
+    colour, grey = _jpeg(picture), _jpeg(picture[..., 0])
+    assert storable_jpeg(colour) and storable_jpeg(grey)
+    progressive = cv2.imencode(".jpg", picture, [cv2.IMWRITE_JPEG_PROGRESSIVE, 1])[1].tobytes()
+    assert storable_jpeg(progressive)
+    ok, png = cv2.imencode(".png", picture)
+    assert not storable_jpeg(png.tobytes())
+    assert not storable_jpeg(b"") and not storable_jpeg(colour[:40])
+    # Motion JPEG's convention of leaving out the Huffman tables: not shown by image viewers
+    segs = _segments(colour)
+    stripped = bytearray(colour)
+    for marker, at in reversed(segs):
+        if marker == 0xC4:
+            length = 2 + int.from_bytes(colour[at + 2:at + 4], "big")
+            del stripped[at:at + length]
+    assert 0xC4 in dict(segs) and 0xC4 not in dict(_segments(bytes(stripped)))
+    assert not storable_jpeg(bytes(stripped))
+    # Exif (an orientation OpenCV applies and a viewer may not)
+    exif = b"Exif\x00\x00" + b"MM\x00\x2a\x00\x00\x00\x08\x00\x00"
+    with_exif = colour[:2] + b"\xff\xe1" + (len(exif) + 2).to_bytes(2, "big") + exif + colour[2:]
+    assert cv2.imdecode(np.frombuffer(with_exif, np.uint8), cv2.IMREAD_COLOR) is not None
+    assert not storable_jpeg(with_exif)
+
+
+@pytest.mark.parametrize("start, step", [(0, 1), (11, 1), (3, 4)])
+def test_mjpg_frames_come_with_their_stored_jpeg(clips, start, step):
+    video = open_video(clips["file"], start=start, step=step)
+    seen = 0
+    for frame in video.frames(encoded=True):
+        assert frame.encoded is not None and frame.encoded[:2] == b"\xff\xd8"
+        stored = cv2.imdecode(np.frombuffer(frame.encoded, np.uint8), cv2.IMREAD_COLOR)
+        assert frame_id(stored) == frame_id(frame.image) == frame.index
+        seen += 1
+    assert seen == len(video)
+    assert all(f.encoded is None for f in video)  # plain iteration reads no packets
+
+
+def test_folder_frames_come_with_their_jpeg_files(tmp_path):
+    jpegs = write_folder(tmp_path / "jpg", [f"{i}.jpg" for i in range(4)])
+    for frame in open_video(jpegs, fps=25).frames(encoded=True):
+        assert frame.encoded == (jpegs / f"{frame.index}.jpg").read_bytes()
+    pngs = write_folder(tmp_path / "png", [f"{i}.png" for i in range(4)])
+    assert all(f.encoded is None for f in open_video(pngs, fps=25).frames(encoded=True))
+
+
+def test_other_codecs_have_no_stored_jpeg(tmp_path):
+    clip = write_clip(tmp_path / "clip.mp4", 5, fourcc="mp4v")
+    frames = list(open_video(clip).frames(encoded=True))
+    assert len(frames) == 5 and all(f.encoded is None for f in frames)

@@ -220,10 +220,11 @@ class EMSettings:
 @dataclass(frozen=True)
 class OutputSettings:
     rrd: bool = _f(True, "bool", "write a Rerun recording (.rrd)")
-    jpeg_quality: int = _f(80, "int", "JPEG quality of frames stored in recordings", lo=10, hi=100)
-    frames: str = _f("auto", "str", "how recordings store frames: jpeg (JPEG images, shown by every Rerun viewer), "
+    jpeg_quality: int = _f(80, "int", "JPEG quality of frames encoded for recordings (frames kept as their source's JPEG are not encoded again)", lo=10, hi=100)
+    frames: str = _f("auto", "str", "how recordings store frames: jpeg (every frame encoded as JPEG at jpeg_quality, shown by every Rerun viewer), "
                      "asset (the MP4 clip embedded as a video; the native viewer needs FFmpeg for H.264/H.265 "
-                     "and cannot play VP9), auto (asset only for AV1 clips, which the native viewer decodes by itself, else jpeg); "
+                     "and cannot play VP9), auto (asset only for AV1 clips, which the native viewer decodes by itself; "
+                     "frames that are JPEG at the source, a folder of .jpg images or an MJPG video, kept as they are; else jpeg); "
                      "a frame selection (--start/--end/--step) is always stored as JPEG",
                      choices=("auto", "jpeg", "asset"))
     outline_points: int = _f(64, "int", "points of the estimated outline written to each row of the track CSV "

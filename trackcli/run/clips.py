@@ -167,7 +167,9 @@ def run_clip(
     if outline_points == 1:
         raise ConfigError("output.outline_points: expected 0 (no outline) or at least 2 points, got 1")
     outline = OutlineColumns(space, int(outline_points)) if outline_points else None
-    frames = DecodeAhead(video, prepare=prepare)
+    # with a recording that keeps the source's JPEG frames, the frames come with them
+    keep_jpeg = rrd_path is not None and frames_mode == "auto" and hasattr(video, "frames")
+    frames = DecodeAhead(video.frames(encoded=True) if keep_jpeg else video, prepare=prepare)
     results = make_tracker(frames)
     recorder: BackgroundRecorder | None = None
     t_start = time.perf_counter()
@@ -214,7 +216,8 @@ def run_clip(
                                              embeddable=getattr(video, "is_rerun_video_asset", lambda: False)(),
                                              whole_clip=getattr(video, "whole_clip", False))
                 log.info("recording frames as %s: %s", storage.upper() if storage == "jpeg" else "a video asset", why)
-                log_frame = rec.frame_logger(path if storage == "asset" else None, quality=jpeg_quality)
+                log_frame = rec.frame_logger(path if storage == "asset" else None, quality=jpeg_quality,
+                                             keep_jpeg=keep_jpeg)
                 recorder = BackgroundRecorder(rec, log_frame, _record_frame)
             step_seconds = 0.0
             while True:
@@ -306,7 +309,7 @@ def run_clip(
 
 def _record_frame(rec: Any, log_frame: Any, frame: Any, r: Any) -> None:
     rec.set_frame(r.index, r.time)
-    log_frame(r.index, frame.image)
+    log_frame(r.index, frame.image, getattr(frame, "encoded", None))
     d = r.display
     if "particle_contours" in d:
         rec.log_contours("video/particles", d["particle_contours"], d["particle_weights"], closed=True)

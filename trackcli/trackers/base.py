@@ -110,6 +110,8 @@ class FrameData:
     colour: np.ndarray | None = None
     """The colour log-ratio map of the appearance model (:meth:`trackcli.observe.discriminant.Appearance.colour_map`);
     None: made when the frame is tracked."""
+    encoded: bytes | None = None
+    """The frame's JPEG as its source stores it, for the recording (:attr:`trackcli.io.video.Frame.encoded`)."""
 
 
 class LossRecord:
@@ -192,7 +194,8 @@ class Tracker(ABC):
         m = self.settings.measurement
         judge = self.judge
         colour = judge.app.colour_map(frame.image) if judge is not None else None
-        return FrameData(int(frame.index), float(frame.time), frame.image, feature_image(frame.image, m), colour)
+        return FrameData(int(frame.index), float(frame.time), frame.image, feature_image(frame.image, m), colour,
+                         getattr(frame, "encoded", None))
 
 
 def run_tracker(tracker: Tracker, frames: Iterable[Any], measurement: MeasurementSettings | None = None
