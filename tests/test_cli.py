@@ -439,3 +439,71 @@ def test_eval_malformed_inputs(tmp_path, pred, truth, culprit, text):
     line = one_line_error(run(["eval", *paths], 4))
     assert line.startswith(f"Error: {tmp_path / culprit}")
     assert text in line
+
+
+# ---------------------------------------------------------------------------------------------
+# Outputs never take the place of inputs, and failed runs keep earlier outputs
+
+
+@pytest.fixture
+def tracked(tmp_path, ellipse_clip, template_file):
+    out = tmp_path / "out"
+    run(["track", ellipse_clip, "--template", template_file, "--tracker", "kalman", "--no-rrd", "-o", out], 0)
+    return out / "ellipse.kalman.csv"
+
+
+def test_render_refuses_to_write_over_its_inputs(tmp_path, ellipse_clip, tracked):
+    before = {p: p.read_bytes() for p in (ellipse_clip, tracked)}
+    for extra in (["-o", ellipse_clip], ["--sheet", "2", "-o", tracked]):
+        line = one_line_error(run(["render", tracked, ellipse_clip, "--end", "2", *extra], 3))
+        assert "would overwrite the input" in line
+    assert "ending in .png" in usage_error(run(["render", tracked, ellipse_clip, "--sheet", "2", "-o",
+                                                tmp_path / "sheet.mp4"], 2))
+    assert {p: p.read_bytes() for p in before} == before
+
+
+def test_render_writes_no_images_into_the_frames_folder_it_reads(tmp_path, ellipse_clip, template_file):
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    cap = cv2.VideoCapture(str(ellipse_clip))
+    for i in range(3):
+        ok, image = cap.read()
+        assert ok and cv2.imwrite(str(frames / f"{i:04d}.png"), image)
+    cap.release()
+    run(["track", frames, "--template", template_file, "--tracker", "kalman", "--no-rrd", "--fps", "25",
+         "-o", tmp_path / "out"], 0)
+    track = tmp_path / "out" / "frames.kalman.csv"
+    listing = sorted(p.name for p in frames.iterdir())
+    run(["render", track, frames, "--png", "-o", frames], 3)
+    assert "frames folder of CLIP" in one_line_error(run(["render", track, frames, "--sheet", "2", "-o",
+                                                          frames / "sheet.png"], 3))
+    assert sorted(p.name for p in frames.iterdir()) == listing
+    run(["render", track, frames, "--sheet", "2", "-o", tmp_path / "sheet.png"], 0)
+
+
+def test_eval_plot_refuses_to_write_over_its_inputs(tracked):
+    truth = tracked.with_name("truth.txt")
+    truth.write_text("".join("40,20,60,80\n" for _ in range(CLIP_FRAMES)))
+    for target in (truth, tracked):
+        before = target.read_bytes()
+        line = one_line_error(run(["eval", tracked, truth, "--plot", target], 3))
+        assert "would overwrite the input" in line and target.read_bytes() == before
+
+
+def test_a_failed_draw_keeps_the_outputs_of_the_run_before(tmp_path, ellipse_clip, monkeypatch):
+    from trackcli.errors import InputError
+    from trackcli.shapes import draw
+
+    out = tmp_path / "t.yaml"
+    run(["draw", ellipse_clip, "--ellipse", "70,60,28,36", "-o", out], 0)
+    before = {p: p.read_bytes() for p in (out, out.with_suffix(".png"))}
+
+    def fail(path, *args, **kwargs):
+        raise InputError(f"{path}: cannot write recording (disk full)")
+
+    monkeypatch.setattr(draw, "record_template", fail)
+    line = one_line_error(run(["draw", ellipse_clip, "--ellipse", "72,60,28,36", "-o", out,
+                               "--rrd", tmp_path / "t.rrd"], 4))
+    assert str(tmp_path / "t.rrd") in line and ".part" not in line
+    assert {p: p.read_bytes() for p in before} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.png", "t.yaml"]

@@ -293,6 +293,14 @@ def test_box_without_an_object_falls_back_to_the_inscribed_ellipse(caplog):
     assert draw.segment_box(img, grown_box(outline, 0.15), with_method=True)[1] == "GrabCut"
 
 
+def test_the_fallback_warning_names_the_box_as_given_when_it_reaches_the_frames_edge(caplog):
+    img = np.full((120, 160, 3), 128, np.uint8)  # padded at the edge before segmenting
+    with caplog.at_level(logging.WARNING, logger="trackcli.shapes.draw"):
+        _, method = draw.segment_box(img, (-20.0, -20.0, 60.0, 60.0), with_method=True)
+    assert method == "inscribed ellipse"
+    assert "--box -20,-20,60,60: automatic segmentation found no clear object" in caplog.text
+
+
 def swan_scene(rng: np.random.Generator):
     """A dark swan-like object (body, neck, head) on water, with a light wall behind it that
     runs through the box between the head and the back and on beyond the box on both sides;

@@ -15,6 +15,7 @@ import contextlib
 import logging
 import os
 import sys
+from pathlib import Path
 
 import click
 
@@ -49,6 +50,10 @@ class TrackcliGroup(click.Group):
         except KeyboardInterrupt:
             click.echo("Interrupted.", err=True)
             ctx.exit(130)
+        except BrokenPipeError:  # the reader of stdout stopped (`| head`): nothing more to say
+            with contextlib.suppress(OSError):
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            ctx.exit(0)
         except OSError as exc:
             name = f"{exc.filename}: " if exc.filename else ""
             _fail(ctx, f"{name}{exc.strerror or exc}", 4)
@@ -103,7 +108,7 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
 
 @cli.group("config")
 def config_group() -> None:
-    """Show, explain, list and check configuration files and presets."""
+    """Show (with every setting explained), list and check configuration files and presets."""
 
 
 @config_group.command("show")
@@ -191,7 +196,7 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
 
     \b
     Examples:
-      trackcli draw sample_data/train.mp4 --box 200,90,90,150 -o head.yaml
+      trackcli draw sample_data/train.mp4 --box 172,91,135,155 -o head.yaml
       trackcli draw clip.mp4 --frame 10 --ellipse 320,240,40,55 --n-ctrl 10 -o head.yaml
       trackcli draw face.mp4 --parts left_eye:341,214,22,14 --parts right_eye:376,214,22,14 \\
           --parts mouth:352,262,34,16 -o face.yaml
@@ -202,7 +207,7 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
     import numpy as np
 
     from trackcli.shapes import draw, structure
-    from trackcli.io.outputs import atomic_path, output_dir, refuse_overwriting_inputs
+    from trackcli.io.outputs import atomic_paths, output_dir, refuse_overwriting_inputs
     from trackcli.shapes.template import save_template
     from trackcli.io.video import open_video
 
@@ -257,19 +262,12 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
     for name, (x, y, w, h) in specs:
         cv2.rectangle(vis, (int(round(x)), int(round(y))), (int(round(x + w)), int(round(y + h))), (0, 200, 255), 1)
     ok, buf = cv2.imencode(".png", vis)
-    written: list[Path] = []
     with output_dir(out.parent), output_dir(png.parent), output_dir(Path(rrd).parent if rrd else out.parent):
-        try:  # all outputs or none
-            written.append(save_template(out, template))
-            with atomic_path(png) as tmp:
-                tmp.write_bytes(buf.tobytes())
-            written.append(png)
+        with atomic_paths(out, png, *([rrd] if rrd else [])) as tmps:  # all outputs or none
+            save_template(tmps[0], template)
+            tmps[1].write_bytes(buf.tobytes())
             if rrd:
-                draw.record_template(rrd, frame.image, template, n_normals=n_normals)
-        except BaseException:
-            for p in written:
-                p.unlink(missing_ok=True)
-            raise
+                draw.record_template(tmps[2], frame.image, template, n_normals=n_normals)
     log.info("template %s (%d control points) from %s", out, n_ctrl, source)
     click.echo(f"wrote {out} and {png}" + (f" and {rrd}" if rrd else ""))
 
@@ -430,8 +428,9 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, threads, 
     Every frame gets a confidence (0-1) that the estimate is on the object, from the
     contour discriminant and the colour learned on the first frame; a frame is lost
     when it is below 0.5, and the summary line counts those frames.  While lost,
-    CONDENSATION also searches the whole frame for object-coloured regions and picks
-    the object up again when it shows (condensation.reacquire).
+    CONDENSATION also looks for object-coloured regions in a square around where the
+    object was last held, growing with the time lost (condensation.reacquire_speed; 0:
+    the whole frame), and picks the object up again when it shows (condensation.reacquire).
     """
     from trackcli.dynamics.model import load_model
     from trackcli.run.clips import clip_json, clip_name, track_clip
@@ -925,7 +924,7 @@ def simulate_cmd(model_path, n_frames, n_paths, seed, output, size, template, fp
     from trackcli.dynamics.model import load_model
     from trackcli.dynamics.simulate import render_paths, simulate_paths, record_paths
 
-    from trackcli.io.outputs import output_dir, refuse_overwriting_inputs
+    from trackcli.io.outputs import atomic_paths, output_dir, refuse_overwriting_inputs
 
     from trackcli.dynamics.mixed import is_mixed_file
 
@@ -937,22 +936,26 @@ def simulate_cmd(model_path, n_frames, n_paths, seed, output, size, template, fp
     if template or fps:
         raise click.UsageError("--template and --fps apply to mixed-state models only")
     m = load_model(model_path)
-    canvas = None
-    if size:
-        from trackcli.shapes.draw import parse_numbers
-
-        w, h = parse_numbers(size, 2, "--size")
-        canvas = (int(w), int(h))
+    canvas = _canvas_size(size)
     paths = simulate_paths(m, n_frames, n_paths, np.random.default_rng(seed))
     png = out.with_suffix(".png")
-    with output_dir(out.parent):
-        try:  # both outputs or none
-            render_paths(m, paths, png, canvas=canvas)
-            record_paths(m, paths, out, seed=seed)
-        except BaseException:
-            png.unlink(missing_ok=True)
-            raise
+    with output_dir(out.parent), atomic_paths(png, out) as (png_tmp, out_tmp):  # both outputs or none
+        render_paths(m, paths, png_tmp, canvas=canvas)
+        record_paths(m, paths, out_tmp, seed=seed)
     click.echo(f"wrote {out} and {png} ({n_paths} paths of {n_frames} frames)")
+
+
+def _canvas_size(size: str | None) -> tuple[int, int] | None:
+    """``--size 'W,H'`` of simulate's PNG, checked (None: the template's frame size)."""
+    if not size:
+        return None
+    from trackcli.errors import ConfigError
+    from trackcli.shapes.draw import parse_numbers
+
+    w, h = parse_numbers(size, 2, "--size")
+    if not all(float(v).is_integer() and 16 <= v <= 16384 for v in (w, h)):
+        raise ConfigError(f"--size: expected a width and height in whole pixels from 16 to 16384, got {size!r}")
+    return int(w), int(h)
 
 
 def _simulate_mixed(model_path, template, fps, n_frames, n_paths, seed, out, size) -> None:
@@ -962,7 +965,7 @@ def _simulate_mixed(model_path, template, fps, n_frames, n_paths, seed, out, siz
 
     from trackcli.dynamics.mixed import load_mixed
     from trackcli.dynamics.simulate import record_paths, render_paths
-    from trackcli.io.outputs import output_dir
+    from trackcli.io.outputs import atomic_paths, output_dir
     from trackcli.shapes.template import load_template
 
     mm = load_mixed(model_path)
@@ -970,12 +973,7 @@ def _simulate_mixed(model_path, template, fps, n_frames, n_paths, seed, out, siz
     if dyn is None:
         raise click.UsageError(f"{model_path} is a hand-written mixed-state model: give --template")
     tmpl = load_template(template) if template else mm.template
-    canvas = None
-    if size:
-        from trackcli.shapes.draw import parse_numbers
-
-        w, h = parse_numbers(size, 2, "--size")
-        canvas = (int(w), int(h))
+    canvas = _canvas_size(size)
     rng = np.random.default_rng(seed)
     sims = [dyn.simulate(n_frames, rng) for _ in range(n_paths)]
     paths = np.stack([p for p, _ in sims])
@@ -985,13 +983,9 @@ def _simulate_mixed(model_path, template, fps, n_frames, n_paths, seed, out, siz
     view = SimpleNamespace(space=space, template=tmpl, dynamics=SimpleNamespace(tau=dyn.tau),
                            provenance={"mixed_state_model": str(model_path), "labels": mm.names, **mm.provenance})
     png = out.with_suffix(".png")
-    with output_dir(out.parent):
-        try:  # both outputs or none
-            render_paths(view, paths, png, canvas=canvas, marks=marks)
-            record_paths(view, paths, out, seed=seed, labels=labels, label_names=mm.names)
-        except BaseException:
-            png.unlink(missing_ok=True)
-            raise
+    with output_dir(out.parent), atomic_paths(png, out) as (png_tmp, out_tmp):  # both outputs or none
+        render_paths(view, paths, png_tmp, canvas=canvas, marks=marks)
+        record_paths(view, paths, out_tmp, seed=seed, labels=labels, label_names=mm.names)
     switches = int(sum((np.diff(lab) != 0).sum() for lab in labels))
     visits = ", ".join(f"{n} {float((labels == i).mean()):.0%}" for i, n in enumerate(mm.names))
     click.echo(f"wrote {out} and {png} ({n_paths} paths of {n_frames} frames; {switches} label switches; "
@@ -1042,6 +1036,11 @@ def eval_cmd(ctx, tracks, truth, threshold, lost_threshold, object_id, plot_path
     from trackcli.run.evaluate import coverage_notes, format_table, load_track, load_truth, score_frames, summarise
 
     quiet = bool(ctx.find_root().obj and ctx.find_root().obj.get("quiet"))
+    if plot_path:
+        from trackcli.io.outputs import refuse_overwriting_inputs
+
+        refuse_overwriting_inputs({"--plot": plot_path},
+                                  {"TRUTH": truth, **{f"PRED {k + 1}": t for k, t in enumerate(tracks)}})
     gt = load_truth(truth, object_id=object_id)
     labels = None
     if plot_path or len(tracks) > 1:
@@ -1115,6 +1114,7 @@ def render_cmd(ctx, track, clip, output, sheet, png, tile_width, truth, object_i
         raise click.UsageError("give --sheet or --png, not both")
     kind = "sheet" if sheet else ("frames" if png else "video")
     out = output or default_output(track, kind)
+    _refuse_rendering_over_inputs(Path(out), kind, track=track, clip=clip, truth=truth)
     gt = None
     if truth:
         from trackcli.run.evaluate import load_truth
@@ -1134,6 +1134,29 @@ def render_cmd(ctx, track, clip, output, sheet, png, tile_width, truth, object_i
             bar_holder["bar"].__exit__(None, None, None)
     what = {"video": f"video ({result.codec})", "frames": "PNG frames", "sheet": "contact sheet"}[kind]
     click.echo(f"wrote {result.output}: {what} of {result.frames} frames, {result.with_estimate} with an estimate")
+
+
+def _refuse_rendering_over_inputs(out: Path, kind: str, *, track: str, clip: str, truth: str | None) -> None:
+    """One-line errors for a render output that would write over its inputs or into the
+    image folder it reads (where a new image would become a frame of the clip)."""
+    from trackcli.errors import ConfigError
+    from trackcli.io.outputs import refuse_overwriting_inputs
+    from trackcli.io.video import IMAGE_SUFFIXES
+
+    refuse_overwriting_inputs({"-o/--output": out}, {"TRACK": track, "CLIP": clip, "--truth": truth})
+    if kind == "sheet" and out.suffix.lower() != ".png":
+        raise click.UsageError(f"--sheet writes a PNG image; give an output name ending in .png, not {out.name!r}")
+    folder = Path(clip)
+    if not folder.is_dir():
+        return
+    frame_folders = [folder, folder / "img"]
+    target = out if kind == "frames" else out.parent
+    for f in frame_folders:
+        with contextlib.suppress(OSError):
+            if f.is_dir() and target.exists() and os.path.samefile(target, f) and (
+                    kind == "frames" or out.suffix.lower() in IMAGE_SUFFIXES):
+                raise ConfigError(f"{out}: would write images into the frames folder of CLIP ({f}); "
+                                  "choose another output")
 
 
 # ---------------------------------------------------------------------------------------------

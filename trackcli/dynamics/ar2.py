@@ -32,6 +32,7 @@ ch. 9 and 11, each written once here for every other module to use.
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -40,6 +41,8 @@ from typing import Any
 import numpy as np
 
 from trackcli.errors import ConfigError, DataError, ModelError
+
+log = logging.getLogger(__name__)
 
 __all__ = [
     "AR2",
@@ -544,10 +547,23 @@ def stationary_covariance(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 
     The caller checks that ``A`` is stable; the result is symmetrised.
     """
+    import warnings
+
     import scipy.linalg  # imported here, not at start-up: it takes a tenth of a second
 
-    P = scipy.linalg.solve_discrete_lyapunov(A, B @ B.T)
-    return 0.5 * (P + P.T)
+    Q = B @ B.T
+    with warnings.catch_warnings():
+        # near the edge of stability scipy warns of an ill-conditioned system; what matters is
+        # whether the solution satisfies the equation, checked below
+        warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+        P = scipy.linalg.solve_discrete_lyapunov(A, Q)
+    P = 0.5 * (P + P.T)
+    residual = np.linalg.norm(A @ P @ A.T + Q - P) / max(np.linalg.norm(P), 1e-300)
+    if not residual < 1e-6:
+        log.warning(
+            "the stationary covariance is inaccurate (relative residual %.1g): the dynamics are close to "
+            "the edge of stability", residual)
+    return P
 
 
 def dynamics_arrays(dynamics: Any, nx: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -61,6 +61,41 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         raise
 
 
+@contextlib.contextmanager
+def atomic_paths(*paths: str | Path) -> Iterator[list[Path]]:
+    """Temporary paths (ending like each of ``paths``) for outputs that are written all or
+    none: each is renamed into place only once the block has written every one.
+
+    If the block fails, the temporary files are removed and the outputs of an earlier run
+    stay as they were (a failure while writing the last of them does not take away the
+    first).  A file system error becomes an :class:`~trackcli.errors.InputError`, as for
+    :func:`atomic_path`.
+    """
+    finals = [Path(p) for p in paths]
+    for p in finals:
+        ensure_dir(p.parent)
+        if p.is_dir():
+            raise InputError(f"{p}: is a folder; give a file name")
+    tmps = [partial_name(p, keep_suffix=True) for p in finals]
+    try:
+        yield tmps
+        for tmp, path in zip(tmps, finals):
+            os.replace(tmp, path)
+    except BaseException as exc:
+        for tmp in tmps:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        if isinstance(exc, OSError) and not isinstance(exc, InputError):
+            raise InputError(f"{finals[0]}: cannot write ({exc.strerror or exc})") from None
+        if isinstance(exc, TrackcliError) and len(exc.args) == 1:
+            message = str(exc)  # name the output, not its temporary name
+            for tmp, path in zip(tmps, finals):
+                message = message.replace(str(tmp), str(path))
+            if message != str(exc):
+                raise type(exc)(message) from None
+        raise
+
+
 def write_text(path: str | Path, text: str) -> Path:
     """Write ``text`` to ``path`` atomically (UTF-8)."""
     path = Path(path)

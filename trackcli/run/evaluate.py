@@ -567,7 +567,7 @@ def format_table(result: EvalResult) -> str:
     if result.lost_threshold is not None:
         lost_rule += f", or error > {result.lost_threshold:g} px"
     rows = [
-        ("frames scored", f"{result.frames_scored}  (window {window}; target absent in {result.frames_absent})"),
+        ("frames scored", f"{result.frames_scored}  (window {window}; {result.frames_absent} with the target absent)"),
         ("frames missing", f"{result.frames_missing}"),
         ("frames lost", f"{result.frames_lost}  ({lost_rule})"),
         (

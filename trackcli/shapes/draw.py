@@ -276,7 +276,14 @@ def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *
         mask = np.ascontiguousarray(mask[p:-p, p:-p])
     else:
         mask, method = _segment(image_bgr, box, (x0, y0, x1 - x0, y1 - y0), iterations, progress)
+    if method == FALLBACK_METHOD:
+        log.warning("--box %g,%g,%g,%g: automatic segmentation found no clear object; using the ellipse "
+                    "inscribed in the box", x, y, w, h)
     return (mask, method) if with_method else mask
+
+
+#: the method :func:`segment_box` names when GrabCut found no object
+FALLBACK_METHOD = "inscribed ellipse"
 
 
 def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect: tuple[int, int, int, int],
@@ -316,13 +323,11 @@ def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect
     candidates = [c for c in candidates if c is not None]
     if not candidates:
         # GrabCut finds nothing convincing (small or low-contrast objects): the ellipse
-        # inscribed in the box is the honest fallback, and the user is told.
-        log.warning("--box %g,%g,%g,%g: automatic segmentation found no clear object; using the ellipse "
-                    "inscribed in the box", x, y, w, h)
+        # inscribed in the box is the honest fallback, and the user is told (segment_box)
         fallback = np.zeros((h_img, w_img), np.uint8)
         box_rr = (((x0 + x1) / 2.0, (y0 + y1) / 2.0), (float(x1 - x0), float(y1 - y0)), 0.0)
         cv2.ellipse(fallback, box_rr, 255, -1)
-        return fallback, "inscribed ellipse"
+        return fallback, FALLBACK_METHOD
     lab = cv2.cvtColor(cv2.GaussianBlur(image_bgr, (5, 5), 0), cv2.COLOR_BGR2Lab)
     unleaked = []
     for c in list(candidates):
