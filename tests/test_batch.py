@@ -207,6 +207,7 @@ def test_a_broken_clip_fails_alone(inputs, tmp_path):
     assert_complete(out / "bouncing_ball", "bouncing_ball", "kalman")
     assert_complete(out / "test", "test", "condensation")
     assert_no_partial_output(out / "corrupt")
+    assert not (out / "corrupt").exists()  # a job that wrote nothing leaves no empty folder
     # a clip's JSON object starts with the same keys as in `track --json`, failed or not
     from trackcli.run.clips import CLIP_JSON_KEYS
 

@@ -507,3 +507,26 @@ def test_a_failed_draw_keeps_the_outputs_of_the_run_before(tmp_path, ellipse_cli
     assert str(tmp_path / "t.rrd") in line and ".part" not in line
     assert {p: p.read_bytes() for p in before} == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.png", "t.yaml"]
+
+
+def test_render_to_a_folder_or_an_unwritable_place_names_the_cause(tmp_path, ellipse_clip, tracked):
+    folder = tmp_path / "a folder"
+    folder.mkdir()
+    assert "is a folder" in one_line_error(run(["render", tracked, ellipse_clip, "--end", "2", "-o", folder], 4))
+    blocker = tmp_path / "a file"
+    blocker.write_text("")
+    line = one_line_error(run(["render", tracked, ellipse_clip, "--end", "2", "-o", blocker / "v.mp4"], 4))
+    assert "a file" in line and "OpenCV" not in line
+
+
+def test_draw_finds_an_impossible_output_folder_before_segmenting(tmp_path, ellipse_clip, monkeypatch):
+    from trackcli.shapes import draw
+
+    def never(*args, **kwargs):
+        raise AssertionError("segmented although the output cannot be written")
+
+    monkeypatch.setattr(draw, "segment_box", never)
+    blocker = tmp_path / "a file"
+    blocker.write_text("")
+    line = one_line_error(run(["draw", ellipse_clip, "--box", "40,20,60,80", "-o", blocker / "t.yaml"], 4))
+    assert "cannot create the output folder" in line

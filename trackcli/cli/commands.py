@@ -207,7 +207,7 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
     import numpy as np
 
     from trackcli.shapes import draw, structure
-    from trackcli.io.outputs import atomic_paths, output_dir, refuse_overwriting_inputs
+    from trackcli.io.outputs import atomic_paths, check_output_folders, output_dir, refuse_overwriting_inputs
     from trackcli.shapes.template import save_template
     from trackcli.io.video import open_video
 
@@ -229,6 +229,7 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
     points_file = points if points and Path(points).is_file() else None
     refuse_overwriting_inputs({"-o/--output": out, "--preview": png, "--rrd": rrd},
                               {"CLIP": clip, "--mask": mask, "--points": points_file})
+    check_output_folders(out, png, rrd)
     with open_video(clip, fps=fps) as video:
         frame = video.read(frame_index)
     size = (frame.image.shape[1], frame.image.shape[0])
@@ -544,6 +545,7 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
     from trackcli.run.clips import check_template_frame, template_space
     from trackcli.shapes.template import load_template
     from trackcli.run.train import learn_from_tracks, parse_shape_space, read_labels, train
+    from trackcli.errors import DataError
 
     settings = _settings(config, {"learning.cycles": cycles, **_video_overrides(fps, start, end, step)})
     tmpl = load_template(template)
@@ -583,9 +585,15 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
             return _progress(ctx, n, label)
 
         with output_dir(work):
-            model, records = train(videos, tmpl, settings, cycles=settings.learning.cycles,
-                                   shape_space=shape_space, outdir=work, write_rrd=not no_rrd, progress=bar,
-                                   method=method)
+            try:
+                model, records = train(videos, tmpl, settings, cycles=settings.learning.cycles,
+                                       shape_space=shape_space, outdir=work, write_rrd=not no_rrd, progress=bar,
+                                       method=method)
+            except DataError as exc:  # the tracks that could not be learned from are kept to look at
+                kept = sorted(p.name for p in work.glob("*.csv"))
+                if not kept:
+                    raise
+                raise DataError(f"{exc} (the training tracks, {', '.join(kept)}, are kept in {work})") from None
             if label_files:
                 tracks = [str(r.csv) for r in records[-1].runs]
                 mixed = _learn_labelled(tracks, label_files, ranges, model, 1.0 / videos[0].fps, settings,

@@ -141,6 +141,21 @@ def output_dir(path: str | Path) -> Iterator[Path]:
         raise
 
 
+def check_output_folders(*paths: str | Path | None) -> None:
+    """Fail early, with one line, when an output's folder cannot be made or written: before a
+    command spends seconds on work it could not save."""
+    for p in paths:
+        if p is None:
+            continue
+        folder = Path(p).parent
+        while not folder.exists() and folder != folder.parent:
+            folder = folder.parent
+        if not folder.is_dir():
+            raise InputError(f"{p}: cannot create the output folder ({folder} is a file)")
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise InputError(f"{p}: cannot write in {folder} (permission denied)")
+
+
 def _same_file(a: Path, b: Path) -> bool:
     try:
         return os.path.samefile(a, b)

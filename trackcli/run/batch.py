@@ -651,6 +651,8 @@ def _worker_id() -> dict[str, Any]:
 
 def _failed(job: Job, folder: Path, message: str, t0: float | None = None) -> JobResult:
     seconds = time.perf_counter() - t0 if t0 is not None else 0.0
+    with contextlib.suppress(OSError):  # a job that wrote nothing leaves no folder
+        folder.rmdir()
     return JobResult(name=job.name, clip=job.clip, status="failed", error=message, tracker=job.tracker,
                      seconds=seconds, folder=str(folder))
 

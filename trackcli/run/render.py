@@ -205,7 +205,13 @@ class _VideoOut:
 
         self.path = path
         ensure_dir(path.parent)
+        if path.is_dir():
+            raise InputError(f"{path}: is a folder; give the video's file name (or --png for a folder of frames)")
         self.tmp = path.with_name(f".{path.stem}.part{path.suffix}")
+        try:  # OpenCV only says it could not open the writer: find out why first
+            self.tmp.touch()
+        except OSError as exc:
+            raise InputError(f"{path}: cannot write ({exc.strerror or exc})") from None
         self.codec = None
         for code in VIDEO_CODECS:
             writer = cv2.VideoWriter(str(self.tmp), cv2.VideoWriter_fourcc(*code), fps, size)
