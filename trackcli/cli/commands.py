@@ -88,7 +88,8 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
     The pipeline (Blake & Isard):
       draw    make a B-spline template around the object in one frame
       learn   track training clips with a Kalman contour tracker and learn AR(2) dynamics
-      track   follow the object in test footage with CONDENSATION (or Kalman)
+      track   follow the object in test footage with CONDENSATION (or the Kalman,
+              multiple-hypothesis and coupled-parts trackers)
       eval    score estimates against ground truth (and plot them)
       render  draw the estimated outline on the frames: video, PNGs, contact sheet
       view    open a recording in the Rerun viewer
@@ -386,7 +387,7 @@ def _video_overrides(fps, start, end, step) -> dict:
                    "(a few Gaussian modes refined by Gauss-Newton steps; settings in mht:), or coupled (a centre "
                    "and rays to parts matched by NCC; needs a structure template from draw --parts; settings in "
                    "coupled:).")
-@click.option("--particles", type=click.IntRange(min=1), help="CONDENSATION sample-set size N (condensation.particles).")
+@click.option("--particles", type=click.IntRange(min=1), help="CONDENSATION sample-set size N (condensation.particles, default 500).")
 @click.option("--threads", type=click.IntRange(min=0, max=256),
               help="Threads that score CONDENSATION's samples (condensation.threads; 0 = every core from 300 "
                    "samples up with the discriminant, 2000 with the numpy models, one below). The results "
@@ -493,7 +494,7 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, threads, 
 @click.option("--template", type=click.Path(dir_okay=False), required=True,
               help="Template drawn on the (first) training clip.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Model file to write (.yaml).")
-@click.option("--cycles", type=click.IntRange(min=1, max=50), help="Track-learn cycles (learning.cycles).")
+@click.option("--cycles", type=click.IntRange(min=1, max=50), help="Track-learn cycles (learning.cycles, default 2).")
 @click.option("--shape-space", "shape_space", help="translation, similarity, affine, or pca:K (residual PCA "
               "on top of translation, learned from the tracked outlines). Default: the config's shape_space.")
 @click.option("--from-tracks", "from_tracks", multiple=True, type=click.Path(dir_okay=False),

@@ -168,6 +168,16 @@ def draw_frame(image: np.ndarray, index: int, track: TrackOutlines, row: int | N
     return out
 
 
+def _tile_text(index: int, track: TrackOutlines, row: int | None) -> str:
+    """A contact-sheet tile's label: the frame number, the confidence and LOST, short."""
+    text = f"{index}"
+    if row is None:
+        return text
+    if track.confidence is not None and np.isfinite(track.confidence[row]):
+        text += f" {track.confidence[row]:.2f}"
+    return text + ("  LOST" if track.lost[row] else "")
+
+
 def _label(img: np.ndarray, text: str, org: tuple[int, int], scale: float | None = None) -> None:
     import cv2
 
@@ -366,8 +376,8 @@ def render(
                     _write_png(tmp_dir / f"frame_{frame.index:06d}.png", img)
                 else:
                     tile = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA) if scale < 1 else img
-                    _label(tile, f"{frame.index}" + ("  LOST" if row is not None and track.lost[row] else ""),
-                           (3, 3), 0.4)
+                    if label:
+                        _label(tile, _tile_text(frame.index, track, row), (3, 3), 0.4)
                     tiles.append(tile)
             if kind == "sheet":
                 from trackcli.io.outputs import atomic_path
