@@ -530,3 +530,18 @@ def test_draw_finds_an_impossible_output_folder_before_segmenting(tmp_path, elli
     blocker.write_text("")
     line = one_line_error(run(["draw", ellipse_clip, "--box", "40,20,60,80", "-o", blocker / "t.yaml"], 4))
     assert "cannot create the output folder" in line
+
+
+def test_render_warns_when_the_track_lies_outside_the_clips_frames(tmp_path, ellipse_clip, tracked, caplog):
+    small = tmp_path / "small"
+    small.mkdir()
+    cap = cv2.VideoCapture(str(ellipse_clip))
+    for i in range(CLIP_FRAMES):
+        ok, image = cap.read()
+        assert ok and cv2.imwrite(str(small / f"{i:04d}.png"), cv2.resize(image, (40, 30)))
+    cap.release()
+    run(["render", tracked, small, "--fps", "25", "--sheet", "2", "-o", tmp_path / "s.png"], 0)
+    assert "lie outside the 40x30 frames" in caplog.text
+    caplog.clear()
+    run(["render", tracked, ellipse_clip, "--sheet", "2", "-o", tmp_path / "t.png"], 0)
+    assert "outside" not in caplog.text

@@ -22,6 +22,7 @@ in grey.
 from __future__ import annotations
 
 import csv
+import logging
 import math
 import os
 import shutil
@@ -33,6 +34,8 @@ import numpy as np
 
 from trackcli.errors import ConfigError, DataError, InputError
 from trackcli.io.outputs import ensure_dir, partial_name
+
+log = logging.getLogger(__name__)
 
 ESTIMATE_BGR = (40, 60, 255)
 LOST_BGR = (160, 160, 160)
@@ -339,6 +342,11 @@ def render(
             raise DataError(f"{track_csv} has no estimate in the selected frames "
                             f"{video.indices.start}-{video.indices.stop - 1} of {clip}; "
                             f"the track covers frames {d_start}-{d_end - 1}")
+        c = track.centroid[np.all(np.isfinite(track.centroid), axis=1)]
+        outside = (c[:, 0] < 0) | (c[:, 1] < 0) | (c[:, 0] > video.width) | (c[:, 1] > video.height)
+        if c.size and outside.mean() > 0.5:
+            log.warning("%s: %d of %d estimates lie outside the %dx%d frames of %s; was the track made on "
+                        "another clip?", track_csv, int(outside.sum()), len(c), video.width, video.height, clip)
         if on_open is not None:
             on_open(len(video))
         scale = min(1.0, tile_width / video.width) if kind == "sheet" else 1.0
