@@ -351,7 +351,9 @@ def _clean_json(d, digits: int | None = None):
 
 
 video_options = [
-    click.option("--fps", type=click.FloatRange(min=0, min_open=True), help="Frame rate of image folders (they carry none); for a video file it replaces the rate the file reports."),
+    click.option("--fps", type=click.FloatRange(min=0, min_open=True),
+                 help="Frame rate of image folders (they carry none); for a video file it replaces the rate "
+                      "the file reports."),
     click.option("--start", type=click.IntRange(min=0), help="First frame (inclusive)."),
     click.option("--end", type=click.IntRange(min=1), help="Last frame (exclusive)."),
     click.option("--step", type=click.IntRange(min=1), help="Use every STEP-th frame."),
