@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+
 import click
 import cv2
 import numpy as np
@@ -540,8 +542,10 @@ def test_render_warns_when_the_track_lies_outside_the_clips_frames(tmp_path, ell
         ok, image = cap.read()
         assert ok and cv2.imwrite(str(small / f"{i:04d}.png"), cv2.resize(image, (40, 30)))
     cap.release()
-    run(["render", tracked, small, "--fps", "25", "--sheet", "2", "-o", tmp_path / "s.png"], 0)
+    with caplog.at_level(logging.WARNING, logger="trackcli"):  # whatever an earlier -q left set
+        run(["render", tracked, small, "--fps", "25", "--sheet", "2", "-o", tmp_path / "s.png"], 0)
     assert "lie outside the 40x30 frames" in caplog.text
     caplog.clear()
-    run(["render", tracked, ellipse_clip, "--sheet", "2", "-o", tmp_path / "t.png"], 0)
+    with caplog.at_level(logging.WARNING, logger="trackcli"):
+        run(["render", tracked, ellipse_clip, "--sheet", "2", "-o", tmp_path / "t.png"], 0)
     assert "outside" not in caplog.text
