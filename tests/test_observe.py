@@ -444,6 +444,53 @@ def test_colour_map_is_the_lookup_of_the_hsv_bins():
                                                                       lut.reshape(1, -1)))
 
 
+def test_a_colour_map_made_where_it_is_read_has_the_whole_maps_values():
+    """LazyColourMap: any rectangle made equals the whole-frame map there (and 0 elsewhere),
+    also with letterbox bars; scoring curves with it gives the whole map's scores to the bit."""
+    rng = np.random.default_rng(9)
+    lut = rng.uniform(-3, 3, 256).astype(np.float32)
+    app = observe.Appearance(polarity=np.zeros(4, np.int8), lambda_in=0.1, lut=lut, size=10.0,
+                             colour_offsets=np.array([1.5, 4.0], np.float32))
+    frame = (rng.random((100, 130, 3)) * 256).astype(np.uint8)
+    whole = app.colour_map(frame)
+    for area in (None, (7, 11, 120, 90)):
+        want = whole.copy()
+        lazy = observe.LazyColourMap(app, frame)
+        if area is not None:
+            observe.clear_bars(want, area)
+            lazy.set_area(area)
+        made = np.zeros(whole.shape, bool)
+        for _ in range(6):
+            x0, y0 = rng.uniform(-20, 140), rng.uniform(-20, 110)
+            x1, y1 = x0 + rng.uniform(1, 60), y0 + rng.uniform(1, 60)
+            lazy.ensure(x0, y0, x1, y1)
+            made[max(0, int(math.floor(y0))):max(0, int(math.ceil(y1))),
+                 max(0, int(math.floor(x0))):max(0, int(math.ceil(x1)))] = True
+            np.testing.assert_array_equal(lazy.array[made], want[made])
+        np.testing.assert_array_equal(lazy.whole(), want)
+    # the tracker's scores with the map made where the samples read it
+    space, judge, sampler, ev = ellipse_scene(3)
+    X = np.zeros((300, 4))
+    X[:, :2] = rng.normal(0, 50, (300, 2))
+    X[:, 2:] = rng.normal(0, 0.2, (300, 2))
+    pts, nrm = space.points_normals(X, sampler)
+    image = object_frame(np.random.default_rng(3))
+    want = judge.score(ev, pts, nrm)
+    for k in range(0, 300, 3):  # one curve a map: the edges of the part made fall everywhere
+        fresh = dataclasses.replace(ev, cmap=observe.LazyColourMap(judge.app, image))
+        np.testing.assert_array_equal(judge.score(fresh, pts[k:k + 1], nrm[k:k + 1]), want[k:k + 1])
+    lazy_ev = dataclasses.replace(ev, cmap=observe.LazyColourMap(judge.app, image))
+    np.testing.assert_array_equal(judge.score(lazy_ev, pts, nrm), want)
+    for a, b in zip(observe.per_normal_reference(judge.app, lazy_ev, pts, nrm, h=judge.h, sigma=judge.sigma,
+                                                 threshold=judge.threshold, miss=judge.miss),
+                    observe.per_normal_reference(judge.app, ev, pts, nrm, h=judge.h, sigma=judge.sigma,
+                                                 threshold=judge.threshold, miss=judge.miss)):
+        np.testing.assert_array_equal(a, b)
+    assert not lazy_ev.cmap._made.all()  # only part of the frame was made
+    with pytest.raises(DataError, match="colour frames only"):
+        observe.LazyColourMap(dataclasses.replace(judge.app, grey=True), object_frame(np.random.default_rng(3)))
+
+
 def test_grey_frames_are_recognised():
     rng = np.random.default_rng(11)
     g = (rng.random((60, 80)) * 256).astype(np.uint8)

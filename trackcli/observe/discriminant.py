@@ -155,14 +155,95 @@ class Appearance:
         return out
 
 
+class LazyColourMap:
+    """A frame's colour map (:meth:`Appearance.colour_map`) made only where it is read.
+
+    The tracker reads the colour map along the normals of its samples, a few times the
+    object's area; a whole 1280×720 frame costs 4.5 ms on one core (the HSV conversion and
+    the look-up of the bins).  :meth:`ensure` makes the blocks of :data:`BLOCK` × BLOCK
+    pixels a rectangle touches that are not made yet; the conversion and the look-up work
+    pixel by pixel, so the values are those of the whole-frame map to the bit.  ``array``
+    holds the map, 0 where not made yet; read it only where :meth:`ensure` (or
+    :meth:`whole`) was called.  Scoring threads may call :meth:`ensure` at once: a block is
+    marked made only after its values are written, and two threads making one block write
+    the same values.  Colour frames only (the grey model's texture is not pixel by pixel).
+    """
+
+    BLOCK = 32
+
+    def __init__(self, app: Appearance, frame_bgr: np.ndarray):
+        if app.grey:
+            raise DataError("a lazily made colour map is for colour frames only")
+        self._frame = _bgr(frame_bgr)
+        self._lut = np.ascontiguousarray(app.lut, dtype=np.float32).reshape(-1)
+        h, w = self._frame.shape[:2]
+        self.array = np.zeros((h, w), np.float32)
+        b = self.BLOCK
+        self._made = np.zeros(((h + b - 1) // b, (w + b - 1) // b), bool)
+        self._area: tuple[int, int, int, int] | None = None
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.array.shape
+
+    def set_area(self, area: tuple[int, int, int, int]) -> None:
+        """The picture between letterbox bars: the map is 0 outside it (:func:`clear_bars`)."""
+        self._area = area
+        clear_bars(self.array, area)
+
+    def ensure(self, x0: float, y0: float, x1: float, y1: float) -> np.ndarray:
+        """Make the map over pixels ``x0 <= x < x1, y0 <= y < y1`` (clipped to the frame); the map."""
+        h, w = self.array.shape
+        b = self.BLOCK
+        bx0, by0 = max(0, int(math.floor(x0)) // b), max(0, int(math.floor(y0)) // b)
+        bx1 = min(self._made.shape[1], (min(int(math.ceil(x1)), w) + b - 1) // b)
+        by1 = min(self._made.shape[0], (min(int(math.ceil(y1)), h) + b - 1) // b)
+        if bx1 <= bx0 or by1 <= by0 or self._made[by0:by1, bx0:bx1].all():
+            return self.array
+        X0, Y0, X1, Y1 = bx0 * b, by0 * b, min(bx1 * b, w), min(by1 * b, h)
+        hsv = cv2.cvtColor(self._frame[Y0:Y1, X0:X1], cv2.COLOR_BGR2HSV)
+        out = np.empty(hsv.shape[:2], np.float32)
+        colour_lookup(hsv, _BIN_SHARES, self._lut, out)
+        if self._area is not None:
+            ax0, ay0, ax1, ay1 = self._area
+            out[:max(0, ay0 - Y0)] = 0.0
+            out[max(0, ay1 - Y0):] = 0.0
+            out[:, :max(0, ax0 - X0)] = 0.0
+            out[:, max(0, ax1 - X0):] = 0.0
+        self.array[Y0:Y1, X0:X1] = out
+        self._made[by0:by1, bx0:bx1] = True
+        return self.array
+
+    def whole(self) -> np.ndarray:
+        """The map of the whole frame."""
+        h, w = self.array.shape
+        return self.ensure(0, 0, w, h)
+
+
+def colour_array(cmap: np.ndarray | LazyColourMap, points: np.ndarray | None = None,
+                 reach: float = 0.0) -> np.ndarray:
+    """The colour map as an array, made (if lazy) wherever it is read within ``reach`` px of
+    ``points`` (n, 2), or over the whole frame when ``points`` is None."""
+    if not isinstance(cmap, LazyColourMap):
+        return cmap
+    if points is None:
+        return cmap.whole()
+    if points.size == 0:
+        return cmap.array
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    return cmap.ensure(float(lo[0]) - reach, float(lo[1]) - reach, float(hi[0]) + reach + 1.0,
+                       float(hi[1]) + reach + 1.0)
+
+
 @dataclass(frozen=True, eq=False)
 class FrameEvidence:
     """One frame's images for the observation model."""
 
     fimg: np.ndarray
     """Feature image (:func:`trackcli.observe.measure.feature_image`)."""
-    cmap: np.ndarray
-    """Colour log-ratio of every pixel (:meth:`Appearance.colour_map`)."""
+    cmap: np.ndarray | LazyColourMap
+    """Colour log-ratio of every pixel (:meth:`Appearance.colour_map`), or the same made
+    where it is read (:class:`LazyColourMap`; :func:`colour_array` gives the array)."""
     density: float
     """Clutter density ``λ`` around the object, features (of any sign) per pixel."""
     area: tuple[int, int, int, int] | None = None
@@ -387,6 +468,14 @@ def _kernel_normals(pts: np.ndarray, nrm: np.ndarray) -> tuple[np.ndarray, np.nd
     return pts, nrm
 
 
+def _colour_reach(app: Appearance, normals: np.ndarray) -> float:
+    """How far (px, along x or y, with the rounding to a pixel) from a normal's point its
+    colour samples are read, at most: the largest offset times the largest component of a normal."""
+    u = float(np.max(np.abs(app.colour_offsets))) if app.colour_offsets.size else 0.0
+    n = float(np.max(np.abs(normals))) if normals.size else 0.0
+    return u * n + 1.0
+
+
 def _kernel_args(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float,
                  sigma: float, threshold: float, miss: float) -> tuple[tuple[int, ...], tuple[Any, ...]]:
     """``(lead, arguments)`` of the compiled kernels for these curves, checked."""
@@ -394,7 +483,7 @@ def _kernel_args(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals
     pts, nrm = _kernel_normals(pts, nrm)
     base, log_ratio_in, inv_in, inv_out = terms
     u_colour, weights = _colour_profile(app)
-    cmap = _as_image(ev.cmap)
+    cmap = _as_image(colour_array(ev.cmap, pts, _colour_reach(app, nrm)))
     if cmap.shape != ev.fimg.shape:
         raise DataError(f"colour map: expected the feature image's shape {ev.fimg.shape}, got {cmap.shape}")
     return lead, (ev.fimg, cmap, pts, nrm, np.ascontiguousarray(app.polarity, np.int8), int(math.ceil(float(h))),
@@ -472,7 +561,7 @@ def per_normal_reference(app: Appearance, ev: FrameEvidence, points: np.ndarray,
     p32, n32 = pts.astype(np.float32), nrm.astype(np.float32)
     x = np.floor(n32[:, None, 0] * u + p32[:, None, 0] + np.float32(0.5)).astype(np.int64)
     y = np.floor(n32[:, None, 1] * u + p32[:, None, 1] + np.float32(0.5)).astype(np.int64)
-    cmap = np.asarray(ev.cmap, dtype=np.float32)
+    cmap = np.asarray(colour_array(ev.cmap, pts, _colour_reach(app, nrm)), dtype=np.float32)
     inside = (x >= 0) & (x < cmap.shape[1]) & (y >= 0) & (y < cmap.shape[0])
     values = np.where(inside, cmap[np.where(inside, y, 0), np.where(inside, x, 0)], np.float32(0.0))
     colour = values.astype(np.float64) @ weights
@@ -607,7 +696,7 @@ def confidence(presence_score: float, spread: float, *, reference: float, centre
 # Re-acquisition: a proposal from the colour map (ICONDENSATION, AC §12 notes)
 
 
-def colour_peaks(cmap: np.ndarray, size: float, *, count: int = 5, floor: float = 0.25,
+def colour_peaks(cmap: np.ndarray | LazyColourMap, size: float, *, count: int = 5, floor: float = 0.25,
                  window: tuple[float, float, float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Where in the frame object-coloured regions of the object's size are: ``(centres (K, 2), strengths (K,))``.
 
@@ -619,7 +708,7 @@ def colour_peaks(cmap: np.ndarray, size: float, *, count: int = 5, floor: float 
     strongest peaks (on a street clip, three of four), so the proposal kept sending samples there.
     With ``window = (x0, y0, x1, y1)`` only maxima whose centres lie inside it count.
     """
-    img = _as_image(cmap)
+    img = _as_image(colour_array(cmap))
     h, w = img.shape
     f = max(1, int(size / 8))
     small = cv2.resize(img, (max(1, w // f), max(1, h // f)), interpolation=cv2.INTER_AREA) if f > 1 else img

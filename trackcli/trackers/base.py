@@ -28,6 +28,7 @@ import numpy as np
 
 from trackcli.io.config import MeasurementSettings, Settings
 from trackcli.observe import measure
+from trackcli.observe.discriminant import LazyColourMap
 from trackcli.shapes.shape_space import ShapeSpace
 
 
@@ -107,7 +108,7 @@ class FrameData:
     time: float
     image: np.ndarray
     features: np.ndarray
-    colour: np.ndarray | None = None
+    colour: np.ndarray | LazyColourMap | None = None
     """The colour log-ratio map of the appearance model (:meth:`trackcli.observe.discriminant.Appearance.colour_map`);
     None: made when the frame is tracked."""
     encoded: bytes | None = None
@@ -193,7 +194,10 @@ class Tracker(ABC):
         """
         m = self.settings.measurement
         judge = self.judge
-        colour = judge.app.colour_map(frame.image) if judge is not None else None
+        colour = None
+        if judge is not None:  # made where the tracker reads it (colour frames), else whole
+            app = judge.app
+            colour = app.colour_map(frame.image) if app.grey else LazyColourMap(app, frame.image)
         return FrameData(int(frame.index), float(frame.time), frame.image, feature_image(frame.image, m), colour,
                          getattr(frame, "encoded", None))
 
