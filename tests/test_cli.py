@@ -549,3 +549,12 @@ def test_render_warns_when_the_track_lies_outside_the_clips_frames(tmp_path, ell
     with caplog.at_level(logging.WARNING, logger="trackcli"):
         run(["render", tracked, ellipse_clip, "--sheet", "2", "-o", tmp_path / "t.png"], 0)
     assert "outside" not in caplog.text
+
+
+def test_render_to_avi_writes_motion_jpeg(tmp_path, ellipse_clip, tracked, capfd):
+    result = run(["render", tracked, ellipse_clip, "--end", "3", "-o", tmp_path / "r.avi"], 0)
+    assert "video (MJPG) of 3 frames" in result.stdout
+    assert "FFMPEG" not in capfd.readouterr().err  # no fallback message from OpenCV's writer
+    cap = cv2.VideoCapture(str(tmp_path / "r.avi"))
+    assert cap.read()[0]
+    cap.release()

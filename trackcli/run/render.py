@@ -44,6 +44,8 @@ TEXT_BGR = (255, 255, 255)
 
 #: Codecs tried, in order, for the MP4 (OpenCV fourcc).  VP9 is small and plays in browsers.
 VIDEO_CODECS = ("vp09", "mp4v")
+#: the codecs tried for an ``.avi`` output (an AVI holds no VP9: OpenCV would print its fallback)
+AVI_CODECS = ("MJPG", "XVID")
 
 
 @dataclass(frozen=True)
@@ -211,7 +213,8 @@ def contact_sheet(tiles: list[np.ndarray], *, columns: int | None = None, gap: i
 
 
 class _VideoOut:
-    """An MP4 written under a temporary name and renamed into place on success."""
+    """A video (MP4, or AVI for an ``.avi`` name) written under a temporary name and renamed
+    into place on success."""
 
     def __init__(self, path: Path, fps: float, size: tuple[int, int]):
         import cv2
@@ -226,7 +229,8 @@ class _VideoOut:
         except OSError as exc:
             raise InputError(f"{path}: cannot write ({exc.strerror or exc})") from None
         self.codec = None
-        for code in VIDEO_CODECS:
+        codecs = AVI_CODECS if path.suffix.lower() == ".avi" else VIDEO_CODECS
+        for code in codecs:
             writer = cv2.VideoWriter(str(self.tmp), cv2.VideoWriter_fourcc(*code), fps, size)
             if writer.isOpened():
                 self.writer, self.codec = writer, code
@@ -234,7 +238,7 @@ class _VideoOut:
             writer.release()
         if self.codec is None:
             self.tmp.unlink(missing_ok=True)
-            raise DataError(f"{path}: OpenCV cannot write an MP4 here (tried {', '.join(VIDEO_CODECS)})")
+            raise DataError(f"{path}: OpenCV cannot write this video here (tried {', '.join(codecs)})")
 
     def write(self, image: np.ndarray) -> None:
         self.writer.write(image)
