@@ -82,7 +82,11 @@ def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet):
         elif not quiet:
             click.echo(f"[{done}/{total}] {r.name}: {_progress_text(r)}", err=True)
 
-    result = batch.run_batch(m, outdir, workers=workers or 1, scheduler=scheduler, force=force, on_result=report)
+    from trackcli.io.outputs import output_dir
+
+    with output_dir(outdir):  # a batch that cannot start (no scheduler) leaves no empty folder
+        result = batch.run_batch(m, outdir, workers=workers or 1, scheduler=scheduler, force=force,
+                                 on_result=report)
     if as_json:
         for r in result.results:
             click.echo(json.dumps({"kind": "clip", **r.to_dict()}, allow_nan=False))
