@@ -175,8 +175,8 @@ class LazyColourMap:
     def __init__(self, app: Appearance, frame_bgr: np.ndarray):
         if app.grey:
             raise DataError("a lazily made colour map is for colour frames only")
+        self._app = app
         self._frame = _bgr(frame_bgr)
-        self._lut = np.ascontiguousarray(app.lut, dtype=np.float32).reshape(-1)
         h, w = self._frame.shape[:2]
         self.array = np.zeros((h, w), np.float32)
         b = self.BLOCK
@@ -211,15 +211,10 @@ class LazyColourMap:
         h, w = self.array.shape
         b = self.BLOCK
         X0, Y0, X1, Y1 = bx0 * b, by0 * b, min(bx1 * b, w), min(by1 * b, h)
-        hsv = cv2.cvtColor(self._frame[Y0:Y1, X0:X1], cv2.COLOR_BGR2HSV)
-        out = np.empty(hsv.shape[:2], np.float32)
-        colour_lookup(hsv, _BIN_SHARES, self._lut, out)
-        if self._area is not None:
+        out = self._app.colour_map(self._frame[Y0:Y1, X0:X1])
+        if self._area is not None:  # the bars, in the block's coordinates
             ax0, ay0, ax1, ay1 = self._area
-            out[:max(0, ay0 - Y0)] = 0.0
-            out[max(0, ay1 - Y0):] = 0.0
-            out[:, :max(0, ax0 - X0)] = 0.0
-            out[:, max(0, ax1 - X0):] = 0.0
+            clear_bars(out, (max(0, ax0 - X0), max(0, ay0 - Y0), max(0, ax1 - X0), max(0, ay1 - Y0)))
         self.array[Y0:Y1, X0:X1] = out
         self._made[by0:by1, bx0:bx1] = True
 
@@ -661,8 +656,12 @@ def without_bars(fimg: np.ndarray, area: tuple[int, int, int, int]) -> np.ndarra
     return out
 
 
-def clear_bars(cmap: np.ndarray, area: tuple[int, int, int, int]) -> None:
-    """Zero a colour map outside the picture ``area`` (no evidence, as beyond the frame's edge); in place."""
+def clear_bars(cmap: np.ndarray | LazyColourMap, area: tuple[int, int, int, int]) -> None:
+    """Zero a colour map outside the picture ``area`` (no evidence, as beyond the frame's edge); in place.
+    A :class:`LazyColourMap` keeps the area for the blocks it makes later."""
+    if isinstance(cmap, LazyColourMap):
+        cmap.set_area(area)
+        return
     x0, y0, x1, y1 = area
     cmap[:y0] = 0.0
     cmap[y1:] = 0.0

@@ -69,10 +69,7 @@ class Presence:
             return observe.evidence(self.app, image, fimg, centre, self.threshold, cmap=colour)
         ev = observe.evidence(self.app, image, observe.without_bars(fimg, self.area), centre, self.threshold,
                               cmap=colour)
-        if isinstance(ev.cmap, observe.LazyColourMap):
-            ev.cmap.set_area(self.area)
-        else:
-            observe.clear_bars(ev.cmap, self.area)
+        observe.clear_bars(ev.cmap, self.area)
         return dataclasses.replace(ev, area=self.area)
 
     def score(self, ev: observe.FrameEvidence, pts: np.ndarray, nrm: np.ndarray) -> np.ndarray:

@@ -147,7 +147,6 @@ def draw_frame(image: np.ndarray, index: int, track: TrackOutlines, row: int | N
         x, y, w, h = truth_box
         cv2.rectangle(out, (int(round(x)), int(round(y))), (int(round(x + w)), int(round(y + h))),
                       TRUTH_BGR, max(1, width // 2), cv2.LINE_AA)
-    text = f"frame {index}"
     if row is not None:
         pts = track.outline[row]
         lost = bool(track.lost[row])
@@ -162,24 +161,18 @@ def draw_frame(image: np.ndarray, index: int, track: TrackOutlines, row: int | N
         if np.all(np.isfinite(c)):
             cv2.circle(out, (int(round(c[0])), int(round(c[1]))), 3, LOST_BGR if lost else ESTIMATE_BGR, -1,
                        cv2.LINE_AA)
-        if track.confidence is not None and np.isfinite(track.confidence[row]):
-            text += f"  conf {track.confidence[row]:.2f}"
-        if lost:
-            text += "  LOST"
-    else:
-        text += "  (no estimate)"
     if label:
-        _label(out, text, (6, 6))
+        _label(out, _frame_text(index, track, row), (6, 6))
     return out
 
 
-def _tile_text(index: int, track: TrackOutlines, row: int | None) -> str:
-    """A contact-sheet tile's label: the frame number, the confidence and LOST, short."""
-    text = f"{index}"
+def _frame_text(index: int, track: TrackOutlines, row: int | None, *, short: bool = False) -> str:
+    """A frame's label: its number, the confidence and LOST (``short``: a contact sheet's tile)."""
+    text = f"{index}" if short else f"frame {index}"
     if row is None:
-        return text
+        return text if short else text + "  (no estimate)"
     if track.confidence is not None and np.isfinite(track.confidence[row]):
-        text += f" {track.confidence[row]:.2f}"
+        text += f" {track.confidence[row]:.2f}" if short else f"  conf {track.confidence[row]:.2f}"
     return text + ("  LOST" if track.lost[row] else "")
 
 
@@ -389,7 +382,7 @@ def render(
                 else:
                     tile = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA) if scale < 1 else img
                     if label:
-                        _label(tile, _tile_text(frame.index, track, row), (3, 3), 0.4)
+                        _label(tile, _frame_text(frame.index, track, row, short=True), (3, 3), 0.4)
                     tiles.append(tile)
             if kind == "sheet":
                 from trackcli.io.outputs import atomic_path
