@@ -9,13 +9,16 @@ import cv2
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from conftest import CLIP_FRAMES, SAMPLE_DATA, sample_clip
 from trackcli.cli import cli
 from trackcli.errors import InputError
 from trackcli.run.evaluate import GroundTruth, Track, coverage_notes, load_track, load_truth, polygon_iou, score_frames
 from trackcli.sample_data import load_outline, load_truth as load_sample_truth, polygon_centroid, true_outline
-from trackcli.io.tracks import outline_header, read_outlines
+from trackcli.io.tracks import BoxCarry, outline_header, read_outlines
+from trackcli.shapes.template import load_template
 
 
 def run(args, code: int):
@@ -272,3 +275,67 @@ def test_csv_cells_of_whole_arrays_match_the_one_value_rule():
             assert _fmt_all(v, digits) == [_fmt(float(x), digits) for x in v]
     assert _fmt_all(np.zeros(0), 3) == []
     assert _fmt_all(np.array([[1.5, 2.0], [np.nan, 1e-4]]), 3) == ["1.5", "2", "", "0.0001"]
+
+
+# ---------------------------------------------------------------------------------------------
+# The drawn box, carried by the estimate
+
+
+@settings(max_examples=60, deadline=None)
+@given(drawn=st.tuples(st.floats(-50, 300), st.floats(-50, 300), st.floats(1, 200), st.floats(1, 200)),
+       start=st.tuples(st.floats(-50, 300), st.floats(-50, 300), st.floats(1, 200), st.floats(1, 200)),
+       shift=st.tuples(st.floats(-100, 100), st.floats(-100, 100)), scale=st.floats(0.2, 5))
+def test_the_carried_box_is_the_drawn_one_at_the_start_and_moves_and_scales_with_the_contour(drawn, start, shift,
+                                                                                            scale):
+    carry = BoxCarry.between(drawn, start)
+    np.testing.assert_allclose(carry(start), drawn, rtol=1e-9, atol=1e-9)
+    # the contour's box moved by `shift` and scaled by `scale` about its corner: the carried box
+    # moves and scales alike about the same point
+    x, y, w, h = start
+    moved = (x + shift[0], y + shift[1], w * scale, h * scale)
+    bx, by, bw, bh = drawn
+    expect = (x + shift[0] + (bx - x) * scale, y + shift[1] + (by - y) * scale, bw * scale, bh * scale)
+    np.testing.assert_allclose(carry(moved), expect, rtol=1e-9, atol=1e-6)
+
+
+def test_a_start_box_without_width_carries_nothing():
+    assert BoxCarry.between((0, 0, 10, 10), (5, 5, 0, 10)) is None
+    assert BoxCarry.between((0, 0, 10, 10), (5, 5, 10, float("nan"))) is None
+
+
+def _first_box(csv_path):
+    with open(csv_path, newline="") as fh:
+        r = next(csv.DictReader(fh))
+    return np.array([float(r[k]) for k in ("bbox_x", "bbox_y", "bbox_w", "bbox_h")])
+
+
+def test_a_track_from_a_box_reports_the_drawn_box_and_output_box_outline_the_contours(tmp_path, ellipse_clip):
+    """A box drawn well outside the ellipse: the track's box columns report that box (moved with
+    the contour), not the segmented outline's own tight box; ``output.box: outline`` gives the latter, and
+    a template drawn otherwise has no box to carry."""
+    box = (30.0, 10.0, 90.0, 100.0)  # the ellipse (70,60,28,36) with a wide margin
+    tmpl = tmp_path / "box.yaml"
+    run(["draw", ellipse_clip, "--box", ",".join(f"{v:g}" for v in box), "-o", tmpl], 0)
+    assert load_template(tmpl).box == box
+    for tracker in ("kalman", "condensation"):
+        run(["track", ellipse_clip, "--template", tmpl, "--tracker", tracker, "--no-rrd", "-o", tmp_path / "a"], 0)
+        first = _first_box(tmp_path / "a" / f"ellipse.{tracker}.csv")
+        np.testing.assert_allclose(first, box, atol=5.0)  # the first estimate is near the template, not on it
+    cfg = tmp_path / "outline.yaml"
+    cfg.write_text("output:\n  box: outline\n")
+    run(["track", ellipse_clip, "--template", tmpl, "--tracker", "kalman", "--no-rrd", "-c", cfg, "-o", tmp_path / "b"], 0)
+    own = _first_box(tmp_path / "b" / "ellipse.kalman.csv")
+    assert np.abs(own - np.array(box))[2:].min() > 10  # the segmented outline is well inside the box
+
+    def outline_box(csv_path):
+        _, outlines, _ = read_outlines(csv_path)
+        lo, hi = outlines[0].min(axis=0), outlines[0].max(axis=0)
+        return np.array([*lo, *(hi - lo)])
+
+    np.testing.assert_allclose(own, outline_box(tmp_path / "b" / "ellipse.kalman.csv"), atol=0.6)
+    ell = tmp_path / "ell.yaml"
+    run(["draw", ellipse_clip, "--ellipse", "70,60,28,36", "-o", ell], 0)
+    assert load_template(ell).box is None
+    run(["track", ellipse_clip, "--template", ell, "--tracker", "kalman", "--no-rrd", "-o", tmp_path / "c"], 0)
+    np.testing.assert_allclose(_first_box(tmp_path / "c" / "ellipse.kalman.csv"),
+                               outline_box(tmp_path / "c" / "ellipse.kalman.csv"), atol=0.6)

@@ -62,6 +62,29 @@ def test_open_curve_and_optional_fields_round_trip(tmp_path):
     np.testing.assert_array_equal(u.control_points, t.control_points)
 
 
+def test_the_drawn_box_round_trips_and_is_absent_by_default(tmp_path):
+    t = square_template(source="box 8,18,60,60 (GrabCut)", box=(8, 18.5, 60, 60))
+    d = t.to_dict()
+    assert d["box"] == [8.0, 18.5, 60.0, 60.0]
+    u = load_template(save_template(tmp_path / "b.yaml", t))
+    assert u.box == (8.0, 18.5, 60.0, 60.0) and "box" not in u.extra
+    assert "box" not in square_template().to_dict()
+    assert load_template(save_template(tmp_path / "n.yaml", square_template())).box is None
+
+
+@pytest.mark.parametrize(
+    "box",
+    [[1, 2, 3], [1, 2, 3, "4"], "1,2,3,4", [1, 2, 0, 4], [1, 2, 3, -4], [1, 2, True, 4], [1, ".nan", 3, 4]],
+    ids=["three", "string-item", "string", "zero-width", "negative-height", "bool", "nan"],
+)
+def test_a_bad_drawn_box_is_named(tmp_path, box):
+    d = good_dict()
+    d["box"] = box if box[1] != ".nan" else [1, float("nan"), 3, 4]
+    p = write_yaml(tmp_path, d)
+    with pytest.raises(TemplateError, match=r"box must be \[x, y, width, height\]"):
+        load_template(p)
+
+
 @settings(max_examples=40, deadline=None)
 @given(
     cp=arrays(np.float64, st.tuples(st.integers(3, 30), st.just(2)),

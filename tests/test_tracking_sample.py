@@ -194,11 +194,14 @@ def test_condensation_keeps_lock_in_clutter(clutter_runs):
     assert result.precision >= 0.95, result  # centroid within 8 px
     assert result.centre_error_max < 20  # never off the object
     # pinned (seed 0 on the committed clip, the contour discriminant): 1 frame beyond 8 px,
-    # mean error 1.7 px, median 1.45 px, box IoU 0.92
+    # mean error 1.7 px, median 1.45 px, outline IoU 0.90
     assert result.frames_lost <= 5
     assert result.centre_error_mean == pytest.approx(1.7, abs=0.5)
     assert result.centre_error_median < 2.0
-    assert result.mean_iou > 0.88
+    assert result.outline_iou > 0.86
+    # the box columns carry TEST_BOX, drawn loosely (IoU 0.70 with the true box on frame 0),
+    # along with the contour: their IoU with the true boxes stays that of the drawn box
+    assert result.mean_iou == pytest.approx(0.70, abs=0.04)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])

@@ -12,6 +12,7 @@ options; the work of each is in :mod:`trackcli.run` and the other packages.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import os
 import sys
@@ -255,9 +256,9 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
         source = f"mask {mask}"
     template = draw.fit_template(outline, n_ctrl, degree=degree, closed=not open_curve, clip=str(clip),
                                  frame=frame_index, frame_size=size, source=source)
+    if box:
+        template = dataclasses.replace(template, box=tuple(b))
     if specs:
-        import dataclasses
-
         parts = structure.cut_parts(cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY), specs)
         template = dataclasses.replace(template, extra={**template.extra, "parts": structure.parts_to_yaml(parts)})
     vis = draw.render_preview(frame.image, template, n_normals=n_normals)

@@ -229,6 +229,10 @@ class OutputSettings:
                      choices=("auto", "jpeg", "asset"))
     outline_points: int = _f(64, "int", "points of the estimated outline written to each row of the track CSV "
                              "(outline_x0, outline_y0, ...); 0 = none, otherwise at least 2", lo=0, hi=1000)
+    box: str = _f("drawn", "str", "the box columns of the track CSV (bbox_x, ...): drawn (when the tracker starts at a template "
+                  "drawn with draw --box, that box carried along by the estimate, so that it is scored in the convention "
+                  "it was given in; otherwise the contour's box) or outline (always the tight box of the estimated contour)",
+                  choices=("drawn", "outline"))
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,9 @@ Columns, in order:
 ``cx, cy``
     area centroid of the estimated contour, px;
 ``bbox_x, bbox_y, bbox_w, bbox_h``
-    tight box of the estimated contour, px;
+    the object's box, px: the tight box of the estimated contour; when the tracker started
+    at a template drawn from a box (``draw --box``) and ``output.box`` is ``drawn`` (the
+    default), that box carried along by the estimate (:class:`BoxCarry`);
 ``n_found, n_normals``
     measurement normals that found a feature, and how many there are;
 ``gate_rms``
@@ -92,13 +94,49 @@ def _fmt_all(values: np.ndarray, digits: int) -> list[str]:
     return cells
 
 
-def row(result, ) -> list[str]:
-    """CSV cells of one :class:`~trackcli.trackers.base.FrameResult` (without its extras and outline)."""
+@dataclass(frozen=True)
+class BoxCarry:
+    """The box a template was drawn from, carried along by the estimate.
+
+    ``draw --box`` segments the object inside the user's box, and the outline it fits is
+    rarely that box: GrabCut leaves out thin parts (a leaf's stem), the spline rounds off
+    corners, a box drawn loosely leaves a margin.  Scored as a box, the contour's own box
+    is then off the user's by the same amount on every frame.  The carried box keeps the
+    drawn box's place relative to the box of the curve the tracker starts from (the template),
+    as fractions of that box's width and height: on frame ``k`` it is
+    ``(x_k + fx w_k, y_k + fy h_k, fw w_k, fh h_k)`` where ``(x_k, y_k, w_k, h_k)`` is the
+    estimated contour's box.  Where the estimate is the template, it is the drawn box; it
+    moves and scales with the contour.
+    """
+
+    fx: float
+    fy: float
+    fw: float
+    fh: float
+
+    @classmethod
+    def between(cls, drawn: Sequence[float], start: Sequence[float]) -> BoxCarry | None:
+        """The carry of the ``drawn`` box ``(x, y, w, h)`` about the contour's box ``start`` on
+        the first frame; None when the contour's box has no width or height."""
+        x, y, w, h = (float(v) for v in start)
+        if not (w > 0 and h > 0 and all(math.isfinite(v) for v in (x, y, w, h))):
+            return None
+        bx, by, bw, bh = (float(v) for v in drawn)
+        return cls((bx - x) / w, (by - y) / h, bw / w, bh / h)
+
+    def __call__(self, bbox: Sequence[float]) -> tuple[float, float, float, float]:
+        x, y, w, h = (float(v) for v in bbox)
+        return (x + self.fx * w, y + self.fy * h, self.fw * w, self.fh * h)
+
+
+def row(result, carry: BoxCarry | None = None) -> list[str]:
+    """CSV cells of one :class:`~trackcli.trackers.base.FrameResult` (without its extras and
+    outline); with ``carry``, the box columns hold the carried box."""
     cells = [str(result.index), f"{result.time:.6f}"]
     cells += _fmt_all(result.X, 8)
     cells += _fmt_all(result.X_std, 6)
     cells += [_fmt(float(result.centroid[0]), 3), _fmt(float(result.centroid[1]), 3)]
-    cells += [_fmt(float(v), 3) for v in result.bbox]
+    cells += [_fmt(float(v), 3) for v in (result.bbox if carry is None else carry(result.bbox))]
     cells += [str(result.n_found), str(result.n_normals), _fmt(result.gate_rms, 4), _fmt(result.ess, 6),
               _fmt(result.loglik, 6), "1" if result.lost else "0",
               _fmt(float(getattr(result, "confidence", math.nan)), 4), _fmt(float(getattr(result, "log_d", math.nan)), 5)]
@@ -151,12 +189,14 @@ class OutlineColumns:
 class TrackWriter:
     """Write rows as results arrive; the file appears under its final name only on ``close``.
 
-    With ``outline`` (an :class:`OutlineColumns`), every row ends with the outline columns.
+    With ``outline`` (an :class:`OutlineColumns`), every row ends with the outline columns;
+    with ``carry``, the box columns hold the drawn box carried by the estimate.
     """
 
     def __init__(self, path: str | Path, names: Sequence[str], outline: OutlineColumns | None = None,
-                 extra: Sequence[str] | None = None):
+                 extra: Sequence[str] | None = None, carry: BoxCarry | None = None):
         self.path = Path(path)
+        self._carry = carry
         self._outline = outline
         self._extra = list(extra or [])
         self._ctx = atomic_path(self.path)
@@ -166,7 +206,7 @@ class TrackWriter:
         self._csv.writerow(header(names) + self._extra + (outline.header() if outline else []))
 
     def write(self, result) -> None:
-        cells = row(result)
+        cells = row(result, self._carry)
         if self._extra:
             cells += [_fmt(float(result.extra.get(e, math.nan)), 6) for e in self._extra]
         if self._outline is not None:

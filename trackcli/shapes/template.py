@@ -13,6 +13,7 @@ A template file is YAML::
       - [212.5, 101.0]
       - ...
     source: "box 180,60,120,200"    # how it was made
+    box: [180.0, 60.0, 120.0, 200.0] # the box it was drawn from (x, y, w, h; only draw --box)
 
 The control points are in the image coordinates of the stated frame; the shape-space built
 on a template has ``Q0`` equal to these points, so ``X = 0`` is the object where it was drawn.
@@ -54,6 +55,10 @@ class Template:
         ``(width, height)`` of that frame.
     source : str
         How the template was made (for provenance).
+    box : tuple of float or None
+        The box ``(x, y, w, h)`` the outline was segmented from (``draw --box``), as given:
+        a track started at the template reports this box carried along by the estimate
+        (:class:`trackcli.io.tracks.BoxCarry`).
     """
 
     control_points: np.ndarray
@@ -63,6 +68,7 @@ class Template:
     frame: int = 0
     frame_size: tuple[int, int] | None = None
     source: str = ""
+    box: tuple[float, float, float, float] | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -77,6 +83,11 @@ class Template:
         if len(cp) < need:
             raise TemplateError(f"a degree-{self.degree} {'closed' if self.closed else 'open'} curve needs at least {need} control points, got {len(cp)}")
         object.__setattr__(self, "control_points", cp)
+        if self.box is not None:
+            b = np.asarray(self.box, dtype=float).reshape(-1)
+            if b.size != 4 or not np.all(np.isfinite(b)) or b[2] <= 0 or b[3] <= 0:
+                raise TemplateError(f"box must be [x, y, width, height] with a positive width and height, got {self.box!r}")
+            object.__setattr__(self, "box", tuple(float(v) for v in b))
 
     @property
     def n_ctrl(self) -> int:
@@ -105,6 +116,8 @@ class Template:
             "control_points": [[round(float(x), 4), round(float(y), 4)] for x, y in self.control_points],
             "source": self.source,
         }
+        if self.box is not None:
+            d["box"] = [round(v, 4) for v in self.box]
         d.update(self.extra)
         return d
 
@@ -136,10 +149,15 @@ class Template:
         closed = d.get("closed", True)
         if not isinstance(closed, bool):
             raise TemplateError(f"{where}: closed must be true or false, got {closed!r}")
-        known = {"format", "kind", "clip", "frame", "frame_size", "degree", "closed", "control_points", "source"}
+        box = d.get("box")
+        if box is not None:
+            if not (isinstance(box, (list, tuple)) and len(box) == 4
+                    and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in box)):
+                raise TemplateError(f"{where}: box must be [x, y, width, height] in pixels, got {box!r}")
+        known = {"format", "kind", "clip", "frame", "frame_size", "degree", "closed", "control_points", "source", "box"}
         try:
             return cls(cp, degree=degree, closed=closed, clip=d.get("clip"), frame=frame, frame_size=size,
-                       source=str(d.get("source", "")), extra={k: v for k, v in d.items() if k not in known})
+                       source=str(d.get("source", "")), box=None if box is None else tuple(box), extra={k: v for k, v in d.items() if k not in known})
         except TemplateError as exc:
             raise TemplateError(f"{where}: {exc}") from None
 
