@@ -18,7 +18,7 @@ $T inspect "$OUT/head-model.yaml"
 $T simulate "$OUT/head-model.yaml" --frames 250 --paths 3 --seed 0 -o "$OUT/head-model_sim.rrd"
 
 echo "== 3/5 track: the cluttered test clip with CONDENSATION and, for comparison, Kalman (same model)"
-$T draw sample_data/test.mp4 --box 166,104,131,153 -o "$OUT/head-test.yaml"
+$T draw sample_data/test.mp4 --box 177,117,110,127 -o "$OUT/head-test.yaml"
 $T track -c $C --model "$OUT/head-model.yaml" --template "$OUT/head-test.yaml" sample_data/test.mp4 -o "$OUT" --seed 0
 $T track -c $C --tracker kalman --model "$OUT/head-model.yaml" --template "$OUT/head-test.yaml" sample_data/test.mp4 -o "$OUT"
 echo "-- and with the defaults alone: no model, no config, the template drawn on this clip"

@@ -22,7 +22,7 @@ mkdir -p "$RUN"
 # Results of the preparation steps go to stderr: this script's stdout is the score table.
 echo "== templates (boxes segmented by GrabCut; an ellipse for the ball)" >&2
 $T draw sample_data/train.mp4 --box 172,91,135,155 -o "$RUN/head-train.yaml" >&2
-$T draw sample_data/test.mp4 --box 166,104,131,153 -o "$RUN/head-test.yaml" >&2
+$T draw sample_data/test.mp4 --box 177,117,110,127 -o "$RUN/head-test.yaml" >&2
 $T draw sample_data/three_heads.mp4 --box 37,186,117,133 -o "$RUN/three_heads-left.yaml" >&2
 $T draw sample_data/three_heads.mp4 --box 358,186,132,150 -o "$RUN/three_heads-walker.yaml" >&2
 $T draw sample_data/bouncing_ball.mp4 --ellipse 40,70,16,16 -o "$RUN/ball.yaml" >&2

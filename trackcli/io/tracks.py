@@ -13,7 +13,7 @@ Columns, in order:
 ``bbox_x, bbox_y, bbox_w, bbox_h``
     the object's box, px: the tight box of the estimated contour; when the tracker started
     at a template drawn from a box (``draw --box``) and ``output.box`` is ``drawn`` (the
-    default), that box carried along by the estimate (:class:`BoxCarry`);
+    default), that box carried along by the estimate (:class:`BoxCarry`, :class:`DrawnBox`);
 ``n_found, n_normals``
     measurement normals that found a feature, and how many there are;
 ``gate_rms``
@@ -102,11 +102,11 @@ class BoxCarry:
     rarely that box: GrabCut leaves out thin parts (a leaf's stem), the spline rounds off
     corners, a box drawn loosely leaves a margin.  Scored as a box, the contour's own box
     is then off the user's by the same amount on every frame.  The carried box keeps the
-    drawn box's place relative to the box of the curve the tracker starts from (the template),
+    drawn box's place relative to an anchor, the contour's box where the object was drawn,
     as fractions of that box's width and height: on frame ``k`` it is
     ``(x_k + fx w_k, y_k + fy h_k, fw w_k, fh h_k)`` where ``(x_k, y_k, w_k, h_k)`` is the
-    estimated contour's box.  Where the estimate is the template, it is the drawn box; it
-    moves and scales with the contour.
+    estimated contour's box.  At the anchor it is the drawn box; it moves and scales with
+    the contour.
     """
 
     fx: float
@@ -115,10 +115,10 @@ class BoxCarry:
     fh: float
 
     @classmethod
-    def between(cls, drawn: Sequence[float], start: Sequence[float]) -> BoxCarry | None:
-        """The carry of the ``drawn`` box ``(x, y, w, h)`` about the contour's box ``start`` on
-        the first frame; None when the contour's box has no width or height."""
-        x, y, w, h = (float(v) for v in start)
+    def between(cls, drawn: Sequence[float], anchor: Sequence[float]) -> BoxCarry | None:
+        """The carry of the ``drawn`` box ``(x, y, w, h)`` about the contour's box ``anchor``;
+        None when that box has no width or height."""
+        x, y, w, h = (float(v) for v in anchor)
         if not (w > 0 and h > 0 and all(math.isfinite(v) for v in (x, y, w, h))):
             return None
         bx, by, bw, bh = (float(v) for v in drawn)
@@ -127,6 +127,27 @@ class BoxCarry:
     def __call__(self, bbox: Sequence[float]) -> tuple[float, float, float, float]:
         x, y, w, h = (float(v) for v in bbox)
         return (x + self.fx * w, y + self.fy * h, self.fw * w, self.fh * h)
+
+
+@dataclass(frozen=True)
+class DrawnBox:
+    """The box a template was drawn from (``box``, on frame ``frame``) and the box of the
+    curve the tracker starts from (``start``): what a track's box columns carry.
+
+    The anchor of the carry (:class:`BoxCarry`) is the first estimate when it is of the
+    frame the box was drawn on: the tracker's first step fits the template to that frame,
+    and a model placed by a template (``--model M --template T``) starts a few pixels off
+    the object.  A track that starts on another frame (``--start``) is anchored on the
+    start curve."""
+
+    box: tuple[float, float, float, float]
+    frame: int
+    start: tuple[float, float, float, float]
+
+    def carry(self, first) -> BoxCarry | None:
+        """The carry for a track whose first result is ``first``."""
+        anchor = first.bbox if int(first.index) == self.frame else self.start
+        return BoxCarry.between(self.box, anchor)
 
 
 def row(result, carry: BoxCarry | None = None) -> list[str]:
@@ -190,13 +211,15 @@ class TrackWriter:
     """Write rows as results arrive; the file appears under its final name only on ``close``.
 
     With ``outline`` (an :class:`OutlineColumns`), every row ends with the outline columns;
-    with ``carry``, the box columns hold the drawn box carried by the estimate.
+    with ``drawn`` (a :class:`DrawnBox`), the box columns hold the drawn box carried by the
+    estimate.
     """
 
     def __init__(self, path: str | Path, names: Sequence[str], outline: OutlineColumns | None = None,
-                 extra: Sequence[str] | None = None, carry: BoxCarry | None = None):
+                 extra: Sequence[str] | None = None, drawn: DrawnBox | None = None):
         self.path = Path(path)
-        self._carry = carry
+        self._drawn = drawn
+        self._carry: BoxCarry | None = None
         self._outline = outline
         self._extra = list(extra or [])
         self._ctx = atomic_path(self.path)
@@ -206,6 +229,8 @@ class TrackWriter:
         self._csv.writerow(header(names) + self._extra + (outline.header() if outline else []))
 
     def write(self, result) -> None:
+        if self._drawn is not None:  # anchored on the first result
+            self._carry, self._drawn = self._drawn.carry(result), None
         cells = row(result, self._carry)
         if self._extra:
             cells += [_fmt(float(result.extra.get(e, math.nan)), 6) for e in self._extra]

@@ -32,7 +32,7 @@ from trackcli.errors import ConfigError, DataError, TemplateError
 from trackcli.io.outputs import output_dir, refuse_overwriting_inputs, write_text
 from trackcli.shapes.outline import contour_summary
 from trackcli.shapes.shape_space import ShapeSpace
-from trackcli.io.tracks import BoxCarry, OutlineColumns, TrackWriter
+from trackcli.io.tracks import DrawnBox, OutlineColumns, TrackWriter
 from trackcli.run.background import BackgroundRecorder, DecodeAhead
 from trackcli.trackers import tracker_class
 
@@ -127,7 +127,7 @@ def run_clip(
     properties: dict[str, Any] | None = None,
     extra_columns: list[str] | None = None,
     prepare: Callable[[Any], Any] | None = None,
-    carry: BoxCarry | None = None,
+    drawn: DrawnBox | None = None,
 ) -> RunSummary:
     """Track ``video`` with ``make_tracker(frames)`` and write the outputs.
 
@@ -165,8 +165,8 @@ def run_clip(
         :meth:`~trackcli.trackers.base.Tracker.prepare`: feature image and colour map), so
         that these whole-frame images are made while the previous frame is tracked;
         ``make_tracker`` then receives its results.
-    carry : BoxCarry, optional
-        The box columns of the CSVs hold the drawn box carried by the estimate.
+    drawn : DrawnBox, optional
+        The box columns of the CSVs hold this box carried by the estimate.
     """
     if outline_points == 1:
         raise ConfigError("output.outline_points: expected 0 (no outline) or at least 2 points, got 1")
@@ -192,7 +192,7 @@ def run_clip(
     rec_ctx = None
     rec = None
     log_frame = None
-    smooth_ctx = TrackWriter(smooth_csv_path, space.names, outline, extra_columns, carry) if smoother is not None else contextlib.nullcontext()
+    smooth_ctx = TrackWriter(smooth_csv_path, space.names, outline, extra_columns, drawn) if smoother is not None else contextlib.nullcontext()
     smoothed_centroids: list[tuple[int, float, float, float]] = []
 
     def write_smoothed(done: list[Any]) -> None:
@@ -210,7 +210,7 @@ def run_clip(
             rec_ctx = Recording(rrd_path, app_id="trackcli", recording_id=recording_id, blueprint="track",
                                 properties=properties)
             rec = rec_ctx.__enter__()
-        with TrackWriter(csv_path, space.names, outline, extra_columns, carry) as writer, smooth_ctx as smooth_writer:
+        with TrackWriter(csv_path, space.names, outline, extra_columns, drawn) as writer, smooth_ctx as smooth_writer:
             if rec is not None:
                 rec.log_params("params", params)
                 from trackcli.io.recording import frame_storage
@@ -381,6 +381,8 @@ class TrackingSetup:
     box : tuple of float or None
         The box the template was drawn from (:attr:`trackcli.shapes.template.Template.box`),
         when the tracker starts at that template.
+    box_frame : int
+        The frame it was drawn on.
     """
 
     space: ShapeSpace
@@ -388,6 +390,7 @@ class TrackingSetup:
     X0: np.ndarray
     source: str
     box: tuple[float, float, float, float] | None = None
+    box_frame: int = 0
 
 
 def clip_name(clip: str | os.PathLike[str]) -> str:
@@ -484,7 +487,7 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
             space, X0 = place_space(m.space, tmpl)
             return TrackingSetup(space, place_dynamics(m.dynamics, space, X0, tau, **noise), X0,
                                  f"model {model} placed by template {template}",
-                                 box=tmpl.box if starts_at_template else None)
+                                 box=tmpl.box if starts_at_template else None, box_frame=tmpl.frame)
         return TrackingSetup(m.space, place_dynamics(m.dynamics, m.space, None, tau, **noise),
                              np.zeros(m.space.Nx), f"model {model}")
     tmpl = load_template(template)
@@ -493,7 +496,8 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
         warn_if_drawn_elsewhere(tmpl, template, video)
     space = template_space(tmpl, template, settings.shape_space)
     return TrackingSetup(space, handset_dynamics(space, settings.dynamics, tau), np.zeros(space.Nx),
-                         f"template {template} (hand-set dynamics)", box=tmpl.box if starts_at_template else None)
+                         f"template {template} (hand-set dynamics)", box=tmpl.box if starts_at_template else None,
+                         box_frame=tmpl.frame)
 
 
 def placement_noise(settings: Settings) -> dict[str, Any]:
@@ -707,7 +711,7 @@ def track_clip(
         bar_ctx = progress(f"{name} ({tracker})", len(video)) if progress else no_progress()
         with bar_ctx as bar:
             summary = run_clip(video, make, space, tracker=tracker, csv_path=csv_path,
-                               extra_columns=the_tracker.extra_columns, carry=_box_carry(setup, settings),
+                               extra_columns=the_tracker.extra_columns, drawn=_drawn_box(setup, settings),
                                rrd_path=rrd_path if write_rrd else None,
                                params=params, jpeg_quality=settings.output.jpeg_quality,
                                progress=bar.update, recording_id=f"{name}-{tracker}-seed{settings.seed}",
@@ -722,12 +726,12 @@ def track_clip(
         return summary
 
 
-def _box_carry(setup: TrackingSetup, settings: Settings) -> BoxCarry | None:
-    """How the track's box columns carry the box the template was drawn from (``output.box``)."""
+def _drawn_box(setup: TrackingSetup, settings: Settings) -> DrawnBox | None:
+    """The box the track's box columns carry (``output.box``), if any."""
     if setup.box is None or settings.output.box != "drawn":
         return None
     _, _, start = contour_summary(setup.space, setup.X0)
-    return BoxCarry.between(setup.box, start)
+    return DrawnBox(setup.box, setup.box_frame, tuple(float(v) for v in start))
 
 
 def _log_setup(name: str, tracker: str, setup: TrackingSetup, settings: Settings, video: Any) -> None:
