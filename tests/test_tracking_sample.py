@@ -18,6 +18,7 @@ samples) come first.
 
 from __future__ import annotations
 
+import csv
 import math
 
 import numpy as np
@@ -202,6 +203,12 @@ def test_condensation_keeps_lock_in_clutter(clutter_runs):
     # the box columns carry TEST_BOX, drawn loosely (IoU 0.70 with the true box on frame 0),
     # along with the contour: their IoU with the true boxes stays that of the drawn box
     assert result.mean_iou == pytest.approx(0.70, abs=0.04)
+    # a model placed by the template: the carry is anchored on the first estimate, so the
+    # first row's box is the drawn box
+    with open(clutter_runs / "test.condensation.csv", newline="") as fh:
+        first = next(csv.DictReader(fh))
+    got = [float(first[k]) for k in ("bbox_x", "bbox_y", "bbox_w", "bbox_h")]
+    assert got == pytest.approx([float(v) for v in TEST_BOX.split(",")], abs=0.002)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])

@@ -131,22 +131,24 @@ class BoxCarry:
 
 @dataclass(frozen=True)
 class DrawnBox:
-    """The box a template was drawn from (``box``, on frame ``frame``) and the box of the
-    curve the tracker starts from (``start``): what a track's box columns carry.
+    """The box a template was drawn from (``box``, on frame ``frame``) and what a track's box
+    columns carry it about (:class:`BoxCarry`).
 
-    The anchor of the carry (:class:`BoxCarry`) is the first estimate when it is of the
-    frame the box was drawn on: the tracker's first step fits the template to that frame,
-    and a model placed by a template (``--model M --template T``) starts a few pixels off
-    the object.  A track that starts on another frame (``--start``) is anchored on the
-    start curve."""
+    The anchor is the box of the curve the tracker starts from (``start``): the drawn
+    outline itself when the template's own shape is tracked.  A model placed by a template
+    (``--model M --template T``) tracks another curve, set on the object by position and
+    size only, a few pixels off it; there (``first``) the anchor is the first estimate when
+    it is of the frame the box was drawn on, the tracker's fit of the model to that frame.
+    """
 
     box: tuple[float, float, float, float]
     frame: int
     start: tuple[float, float, float, float]
+    first: bool = False
 
     def carry(self, first) -> BoxCarry | None:
         """The carry for a track whose first result is ``first``."""
-        anchor = first.bbox if int(first.index) == self.frame else self.start
+        anchor = first.bbox if self.first and int(first.index) == self.frame else self.start
         return BoxCarry.between(self.box, anchor)
 
 

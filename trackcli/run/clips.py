@@ -383,6 +383,8 @@ class TrackingSetup:
         when the tracker starts at that template.
     box_frame : int
         The frame it was drawn on.
+    placed : bool
+        The curve tracked is a model's placed by the template, not the template's own.
     """
 
     space: ShapeSpace
@@ -391,6 +393,7 @@ class TrackingSetup:
     source: str
     box: tuple[float, float, float, float] | None = None
     box_frame: int = 0
+    placed: bool = False
 
 
 def clip_name(clip: str | os.PathLike[str]) -> str:
@@ -487,7 +490,7 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
             space, X0 = place_space(m.space, tmpl)
             return TrackingSetup(space, place_dynamics(m.dynamics, space, X0, tau, **noise), X0,
                                  f"model {model} placed by template {template}",
-                                 box=tmpl.box if starts_at_template else None, box_frame=tmpl.frame)
+                                 box=tmpl.box if starts_at_template else None, box_frame=tmpl.frame, placed=True)
         return TrackingSetup(m.space, place_dynamics(m.dynamics, m.space, None, tau, **noise),
                              np.zeros(m.space.Nx), f"model {model}")
     tmpl = load_template(template)
@@ -731,7 +734,7 @@ def _drawn_box(setup: TrackingSetup, settings: Settings) -> DrawnBox | None:
     if setup.box is None or settings.output.box != "drawn":
         return None
     _, _, start = contour_summary(setup.space, setup.X0)
-    return DrawnBox(setup.box, setup.box_frame, tuple(float(v) for v in start))
+    return DrawnBox(setup.box, setup.box_frame, tuple(float(v) for v in start), first=setup.placed)
 
 
 def _log_setup(name: str, tracker: str, setup: TrackingSetup, settings: Settings, video: Any) -> None:
