@@ -146,9 +146,9 @@ class DrawnBox:
     start: tuple[float, float, float, float]
     first: bool = False
 
-    def carry(self, first) -> BoxCarry | None:
-        """The carry for a track whose first result is ``first``."""
-        anchor = first.bbox if self.first and int(first.index) == self.frame else self.start
+    def carry(self, result) -> BoxCarry | None:
+        """The carry for a track whose first result is ``result``."""
+        anchor = result.bbox if self.first and int(result.index) == self.frame else self.start
         return BoxCarry.between(self.box, anchor)
 
 
