@@ -6,7 +6,8 @@ clips of the same kinds (an object's outline in dense clutter that looks like it
 independently of it, with other choices everywhere: three kinds of object (a bust with hair,
 an open hand, a leaf on its stem) built from OpenCV's drawing primitives, with shading and
 texture; backgrounds of smooth colour fields under random shapes, strokes, printed text,
-stripes and look-alikes of the object (some in its own colours, one of them possibly moving);
+stripes and look-alikes of the object (half of them its copies, at other sizes and angles;
+one look-alike, its twin or not, may walk across);
 motion as a random walk of the velocity with bursts, turning and growing or shrinking by up
 to a quarter; a bar that may pass in front of the object; changes of exposure, sensor noise,
 lens blur and JPEG compression.  Frames are rendered at twice the size and reduced (pixel
@@ -49,9 +50,11 @@ def _skin(rng) -> tuple[float, float, float]:
     return tuple(float(v) for v in (dark + t * (light - dark) + rng.normal(0, 8, 3)).clip(0, 255))
 
 
-def make_sprite(kind: str, size: float, rng) -> tuple[np.ndarray, np.ndarray]:
+def make_sprite(kind: str, size: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """The object as a BGR image and a 0..1 alpha, at supersampled resolution; ``size`` is its
-    height in output pixels.  The object's centre is the sprite's centre."""
+    height in output pixels.  The object's centre is the sprite's centre.  Its colours,
+    proportions and texture come from ``seed``: the same seed draws the same object."""
+    rng = np.random.default_rng(seed)
     s = size * SS
     side = int(math.ceil(s * 1.6)) | 1
     img = np.zeros((side, side, 3), np.float32)
@@ -156,8 +159,9 @@ def paste(canvas: np.ndarray, cover: np.ndarray | None, sprite, alpha, cx, cy, a
     return a
 
 
-def background(rng, w: int, h: int, kind: str, obj_size: float, avoid, n_lookalike: int) -> np.ndarray:
-    """Clutter at supersampled size; look-alikes stay out of the ``avoid`` box (output pixels)."""
+def background(rng, w: int, h: int, kind: str, obj_size: float, avoid, n_lookalike: int, obj_seed: int) -> np.ndarray:
+    """Clutter at supersampled size; look-alikes stay out of the ``avoid`` box (output pixels),
+    half of them copies of the object (``make_sprite`` seed ``obj_seed``) at other sizes and angles."""
     W, H = w * SS, h * SS
     base = np.array(_colour(rng, 60, 200), np.float32)
     bg = (base + smooth_field(rng, W, H, 4, 50) + smooth_field(rng, W, H, 24, 12)).clip(0, 255).astype(np.uint8)
@@ -206,7 +210,7 @@ def background(rng, w: int, h: int, kind: str, obj_size: float, avoid, n_lookali
         if x + r > ax and x - r < ax + aw and y + r > ay and y - r < ay + ah:
             continue
         same = rng.uniform() < 0.5
-        sprite, alpha = make_sprite(kind, obj_size, np.random.default_rng(rng.integers(1 << 30)) if not same else rng)
+        sprite, alpha = make_sprite(kind, obj_size, obj_seed if same else int(rng.integers(1 << 30)))
         # a partly drawn look-alike now and then (cut by a random half-plane)
         if rng.uniform() < 0.3:
             side = alpha.shape[0]
@@ -225,7 +229,8 @@ def render_clip(out: Path, seed: int, index: int) -> str:
     w, h = SIZES[int(rng.integers(0, len(SIZES)))]
     n = int(rng.integers(120, 201))
     size = rng.uniform(0.28, 0.45) * h
-    sprite, alpha = make_sprite(kind, size, rng)
+    obj_seed = int(rng.integers(1 << 30))
+    sprite, alpha = make_sprite(kind, size, obj_seed)
     # motion: the velocity a random walk with damping and bursts; turning and growing slowly
     pos = np.array([rng.uniform(0.35, 0.65) * w, rng.uniform(0.4, 0.6) * h])
     vel = np.zeros(2)
@@ -253,10 +258,11 @@ def render_clip(out: Path, seed: int, index: int) -> str:
     a0 = cv2.warpAffine(alpha, _matrix(alpha.shape[0], poses[0][0] * SS, poses[0][1] * SS, *poses[0][2:]), (w * SS, h * SS))
     ys, xs = np.nonzero(a0 > 0.5)
     box0 = (xs.min() / SS, ys.min() / SS, (xs.max() - xs.min()) / SS, (ys.max() - ys.min()) / SS)
-    bg = background(rng, w, h, kind, size, box0, int(rng.integers(3, 9)))
+    bg = background(rng, w, h, kind, size, box0, int(rng.integers(3, 9)), obj_seed)
     mover = None
     if rng.uniform() < 0.5:  # a look-alike walking across
-        msprite, malpha = make_sprite(kind, size * rng.uniform(0.9, 1.1), rng)
+        twin = rng.uniform() < 0.5  # the object's twin, or another of its kind
+        msprite, malpha = make_sprite(kind, size * rng.uniform(0.9, 1.1), obj_seed if twin else int(rng.integers(1 << 30)))
         y0 = rng.uniform(0.3, 0.7) * h
         x_from, x_to = (-0.3 * w, 1.3 * w) if rng.uniform() < 0.5 else (1.3 * w, -0.3 * w)
         t0 = int(rng.integers(0, n // 2))
