@@ -17,8 +17,8 @@ Each clip is written in OTB's layout, ``NAME/img/0001.jpg …`` and ``NAME/groun
 (the tight box ``x,y,w,h`` of the object's visible mask, 0-based pixels, one line per frame),
 so ``bench/quality.py --footage DIR`` scores trackcli and the OpenCV trackers on them:
 
-    python bench/other_clips.py /tmp/other --count 12 --seed 0
-    python bench/quality.py --seeds '' --footage /tmp/other --runs 3 --peers
+    python bench/other_clips.py other-clips --count 12 --seed 0
+    python bench/quality.py --seeds '' --footage other-clips --runs 3 --peers
 
 The same ``--seed`` gives the same clips.
 """
