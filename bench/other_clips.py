@@ -15,7 +15,9 @@ coverage at the edges).
 
 Each clip is written in OTB's layout, ``NAME/img/0001.jpg …`` and ``NAME/groundtruth_rect.txt``
 (the tight box ``x,y,w,h`` of the object's visible mask, 0-based pixels, one line per frame),
-so ``bench/quality.py --footage DIR`` scores trackcli and the OpenCV trackers on them:
+with that mask in ``NAME/masks/00000.png …`` as DAVIS gives it, so ``bench/quality.py
+--footage DIR`` scores trackcli and the OpenCV trackers on them (``--outline``: from the true
+outline), and ``bench/segmentation.py --footage DIR`` scores ``draw --box``'s masks:
 
     python bench/other_clips.py other-clips --count 12 --seed 0
     python bench/quality.py --seeds '' --footage other-clips --runs 3 --peers
@@ -279,6 +281,7 @@ def render_clip(out: Path, seed: int, index: int) -> str:
     name = f"other_{kind}_{seed}_{index:02d}"
     folder = out / name
     (folder / "img").mkdir(parents=True, exist_ok=True)
+    (folder / "masks").mkdir(exist_ok=True)
     rows = []
     for k, (x, y, ang, sc) in enumerate(poses):
         canvas = bg.copy()
@@ -299,6 +302,7 @@ def render_clip(out: Path, seed: int, index: int) -> str:
         cv2.imwrite(str(folder / "img" / f"{k + 1:04d}.jpg"), frame.clip(0, 255).astype(np.uint8),
                     [cv2.IMWRITE_JPEG_QUALITY, quality])
         vis = cv2.resize(cover, (w, h), interpolation=cv2.INTER_AREA) > 0.5
+        cv2.imwrite(str(folder / "masks" / f"{k:05d}.png"), vis.astype(np.uint8) * 255)
         ys, xs = np.nonzero(vis)
         if xs.size:
             rows.append(f"{xs.min()},{ys.min()},{xs.max() - xs.min() + 1},{ys.max() - ys.min() + 1}")

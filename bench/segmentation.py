@@ -5,10 +5,10 @@ Cases:
 - the sample clips regenerated with ``--seeds`` (frame 0 of ``test`` and ``train`` and the
   walker of ``three_heads``), with the tight box of the true outline and the box grown by
   15 % (a loosely drawn box);
-- the DAVIS folders of ``--footage`` (their ``masks/``): every ``--every``-th frame, the box of
-  the true mask.
+- the folders of ``--footage`` with ``img/`` and ``masks/`` (DAVIS's layout, and the clips of
+  ``bench/other_clips.py``): every ``--every``-th frame, the box of the true mask.
 
-Prints the mean IoU of the mask ``segment_box`` returns per group, and per DAVIS sequence,
+Prints the mean IoU of the mask ``segment_box`` returns per group, and per footage folder,
 next to the template's own mask (after the B-spline fit of ``draw``) with ``--fit``; with
 ``--grey``, of grey copies of the frames.
 
@@ -68,7 +68,7 @@ def synthetic_cases(seeds):
 
 
 def davis_cases(footage: Path, every: int):
-    for folder in sorted(footage.glob("davis_*")):
+    for folder in sorted(p for p in footage.iterdir() if (p / "img").is_dir() and (p / "masks").is_dir()):
         imgs = sorted((folder / "img").iterdir())
         masks = sorted((folder / "masks").iterdir())
         for k in range(0, len(imgs), every):
@@ -123,14 +123,14 @@ def main() -> None:
     synth, real = [], []
     synth_fit, real_fit = [], []
     for name, v in groups.items():
-        (real if name.startswith("davis") else synth).extend(v)
+        (synth if name.startswith("sample ") else real).extend(v)
         line = f"{name:28s} {len(v):5d} {statistics.mean(v):9.3f} {min(v):6.3f}"
         if args.fit:
             f = fitted[name]
-            (real_fit if name.startswith("davis") else synth_fit).extend(f)
+            (synth_fit if name.startswith("sample ") else real_fit).extend(f)
             line += f" {statistics.mean(f):9.3f} {min(f):6.3f}"
         print(line)
-    for label, v, f in (("all synthetic", synth, synth_fit), ("all DAVIS", real, real_fit)):
+    for label, v, f in (("all sample clips", synth, synth_fit), ("all --footage folders", real, real_fit)):
         if v:
             line = f"{label:28s} {len(v):5d} {statistics.mean(v):9.3f} {min(v):6.3f}"
             if args.fit:
