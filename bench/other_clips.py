@@ -74,13 +74,11 @@ def make_sprite(kind: str, size: float, seed: int) -> tuple[np.ndarray, np.ndarr
         head = (c, c - s * 0.5 + hh)
         sh_w = s * rng.uniform(0.42, 0.55)
         top_sh = head[1] + hh * 1.25
-        for tgt, val in ((img, shirt), (alpha, 255)):
-            ell(tgt, (c, c + s * 0.5), (sh_w, (c + s * 0.5) - top_sh), 0, val)
         neck_w = hw * 0.55
-        cv2.rectangle(img, (int(c - neck_w), int(head[1])), (int(c + neck_w), int(top_sh + 5)), skin, -1)
-        cv2.rectangle(alpha, (int(c - neck_w), int(head[1])), (int(c + neck_w), int(top_sh + 5)), 255, -1)
-        ell(img, head, (hw, hh), 0, skin)
-        ell(alpha, head, (hw, hh), 0, 255)
+        for tgt, body, face in ((img, shirt, skin), (alpha, 255, 255)):
+            ell(tgt, (c, c + s * 0.5), (sh_w, (c + s * 0.5) - top_sh), 0, body)
+            cv2.rectangle(tgt, (int(c - neck_w), int(head[1])), (int(c + neck_w), int(top_sh + 5)), face, -1)
+            ell(tgt, head, (hw, hh), 0, face)
         # hair: a cap over the top of the head, a little wider than it
         cap = np.zeros_like(alpha)
         ell(cap, (head[0], head[1] - hh * 0.15), (hw * 1.08, hh * 0.95), 0, 255)

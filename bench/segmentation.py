@@ -67,7 +67,7 @@ def synthetic_cases(seeds):
             yield f"sample {clip} loose", img, mask, _grow(tight, 0.15)
 
 
-def davis_cases(footage: Path, every: int):
+def footage_cases(footage: Path, every: int):
     for folder in sorted(p for p in footage.iterdir() if (p / "img").is_dir() and (p / "masks").is_dir()):
         imgs = sorted((folder / "img").iterdir())
         masks = sorted((folder / "masks").iterdir())
@@ -107,7 +107,7 @@ def main() -> None:
     n = 0
     cases = list(synthetic_cases(seeds))
     if args.footage.is_dir():
-        cases += list(davis_cases(args.footage, args.every))
+        cases += list(footage_cases(args.footage, args.every))
     fitted: dict[str, list[float]] = {}
     for name, img, truth, box in cases:
         if args.grey:

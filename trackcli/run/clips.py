@@ -378,22 +378,17 @@ class TrackingSetup:
         Initial shape vector.
     source : str
         One-line description (for logs and recordings).
-    box : tuple of float or None
+    drawn : DrawnBox or None
         The box the template was drawn from (:attr:`trackcli.shapes.template.Template.box`),
-        when the tracker starts at that template.
-    box_frame : int
-        The frame it was drawn on.
-    placed : bool
-        The curve tracked is a model's placed by the template, not the template's own.
+        which the track's box columns carry, when the tracker starts at that template and
+        ``output.box`` is ``drawn``.
     """
 
     space: ShapeSpace
     dynamics: AR2
     X0: np.ndarray
     source: str
-    box: tuple[float, float, float, float] | None = None
-    box_frame: int = 0
-    placed: bool = False
+    drawn: DrawnBox | None = None
 
 
 def clip_name(clip: str | os.PathLike[str]) -> str:
@@ -490,7 +485,7 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
             space, X0 = place_space(m.space, tmpl)
             return TrackingSetup(space, place_dynamics(m.dynamics, space, X0, tau, **noise), X0,
                                  f"model {model} placed by template {template}",
-                                 box=tmpl.box if starts_at_template else None, box_frame=tmpl.frame, placed=True)
+                                 drawn=_drawn_box(tmpl, space, X0, settings, starts_at_template, placed=True))
         return TrackingSetup(m.space, place_dynamics(m.dynamics, m.space, None, tau, **noise),
                              np.zeros(m.space.Nx), f"model {model}")
     tmpl = load_template(template)
@@ -498,9 +493,20 @@ def tracking_setup(model: str | os.PathLike[str] | None, template: str | os.Path
     if starts_at_template:
         warn_if_drawn_elsewhere(tmpl, template, video)
     space = template_space(tmpl, template, settings.shape_space)
-    return TrackingSetup(space, handset_dynamics(space, settings.dynamics, tau), np.zeros(space.Nx),
-                         f"template {template} (hand-set dynamics)", box=tmpl.box if starts_at_template else None,
-                         box_frame=tmpl.frame)
+    X0 = np.zeros(space.Nx)
+    return TrackingSetup(space, handset_dynamics(space, settings.dynamics, tau), X0,
+                         f"template {template} (hand-set dynamics)",
+                         drawn=_drawn_box(tmpl, space, X0, settings, starts_at_template))
+
+
+def _drawn_box(tmpl: Any, space: ShapeSpace, X0: np.ndarray, settings: Settings, starts_at_template: bool, *,
+               placed: bool = False) -> DrawnBox | None:
+    """The box ``tmpl`` was drawn from, for the track's box columns to carry (``output.box``);
+    ``placed``: the curve tracked is a model's placed by the template, not the template's own."""
+    if tmpl.box is None or not starts_at_template or settings.output.box != "drawn":
+        return None
+    _, _, start = contour_summary(space, X0)
+    return DrawnBox(tmpl.box, tmpl.frame, tuple(float(v) for v in start), first=placed)
 
 
 def placement_noise(settings: Settings) -> dict[str, Any]:
@@ -714,7 +720,7 @@ def track_clip(
         bar_ctx = progress(f"{name} ({tracker})", len(video)) if progress else no_progress()
         with bar_ctx as bar:
             summary = run_clip(video, make, space, tracker=tracker, csv_path=csv_path,
-                               extra_columns=the_tracker.extra_columns, drawn=_drawn_box(setup, settings),
+                               extra_columns=the_tracker.extra_columns, drawn=setup.drawn,
                                rrd_path=rrd_path if write_rrd else None,
                                params=params, jpeg_quality=settings.output.jpeg_quality,
                                progress=bar.update, recording_id=f"{name}-{tracker}-seed{settings.seed}",
@@ -727,14 +733,6 @@ def track_clip(
         log.info("%s: %d frames decoded in %.2f s, tracked in %.2f s", name, summary.frames, summary.decode_seconds,
                  summary.tracker_seconds)
         return summary
-
-
-def _drawn_box(setup: TrackingSetup, settings: Settings) -> DrawnBox | None:
-    """The box the track's box columns carry (``output.box``), if any."""
-    if setup.box is None or settings.output.box != "drawn":
-        return None
-    _, _, start = contour_summary(setup.space, setup.X0)
-    return DrawnBox(setup.box, setup.box_frame, tuple(float(v) for v in start), first=setup.placed)
 
 
 def _log_setup(name: str, tracker: str, setup: TrackingSetup, settings: Settings, video: Any) -> None:
