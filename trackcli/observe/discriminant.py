@@ -472,12 +472,10 @@ def _kernel_normals(pts: np.ndarray, nrm: np.ndarray) -> tuple[np.ndarray, np.nd
     return pts, nrm
 
 
-def _colour_reach(app: Appearance, normals: np.ndarray) -> float:
+def _colour_reach(app: Appearance) -> float:
     """How far (px, along x or y, with the rounding to a pixel) from a normal's point its
-    colour samples are read, at most: the largest offset times the largest component of a normal."""
-    u = float(np.max(np.abs(app.colour_offsets))) if app.colour_offsets.size else 0.0
-    n = float(np.max(np.abs(normals))) if normals.size else 0.0
-    return u * n + 1.0
+    colour samples are read, at most: the largest offset (the normals are unit vectors)."""
+    return (float(np.max(np.abs(app.colour_offsets))) if app.colour_offsets.size else 0.0) + 1.0
 
 
 def _kernel_args(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.ndarray, *, h: float,
@@ -487,7 +485,7 @@ def _kernel_args(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals
     pts, nrm = _kernel_normals(pts, nrm)
     base, log_ratio_in, inv_in, inv_out = terms
     u_colour, weights = _colour_profile(app)
-    cmap = _as_image(colour_array(ev.cmap, pts, _colour_reach(app, nrm)))
+    cmap = _as_image(colour_array(ev.cmap, pts, _colour_reach(app)))
     if cmap.shape != ev.fimg.shape:
         raise DataError(f"colour map: expected the feature image's shape {ev.fimg.shape}, got {cmap.shape}")
     return lead, (ev.fimg, cmap, pts, nrm, np.ascontiguousarray(app.polarity, np.int8), int(math.ceil(float(h))),
@@ -565,7 +563,7 @@ def per_normal_reference(app: Appearance, ev: FrameEvidence, points: np.ndarray,
     p32, n32 = pts.astype(np.float32), nrm.astype(np.float32)
     x = np.floor(n32[:, None, 0] * u + p32[:, None, 0] + np.float32(0.5)).astype(np.int64)
     y = np.floor(n32[:, None, 1] * u + p32[:, None, 1] + np.float32(0.5)).astype(np.int64)
-    cmap = np.asarray(colour_array(ev.cmap, pts, _colour_reach(app, nrm)), dtype=np.float32)
+    cmap = np.asarray(colour_array(ev.cmap, pts, _colour_reach(app)), dtype=np.float32)
     inside = (x >= 0) & (x < cmap.shape[1]) & (y >= 0) & (y < cmap.shape[0])
     values = np.where(inside, cmap[np.where(inside, y, 0), np.where(inside, x, 0)], np.float32(0.0))
     colour = values.astype(np.float64) @ weights
