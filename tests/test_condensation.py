@@ -401,3 +401,54 @@ def test_weigh_in_threads_gives_every_thread_an_equal_share_and_the_same_result(
 
         with pytest.raises(DataError, match="scoring failed"):
             cond.weigh(x, failing, threads=threads)
+
+
+# ---------------------------------------------------------------------------------------------
+# A tempered likelihood (power < 1)
+
+
+@settings(max_examples=40, deadline=None)
+@given(power=st.floats(0.05, 1.0), seed=st.integers(0, 2**31 - 1))
+def test_the_weights_take_the_likelihood_to_the_power_and_report_it_unscaled(power, seed):
+    rng = np.random.default_rng(seed)
+    samples = rng.normal(size=(40, 2))
+    base = rng.normal(size=40)
+
+    def loglik(x):
+        return -3.0 * (x * x).sum(axis=1)
+
+    ll, log_w, degenerate = cond.weigh(samples, loglik, base, power=power)
+    np.testing.assert_allclose(ll, loglik(samples))
+    expected = base + power * loglik(samples)
+    expected = expected - expected.max()
+    expected = expected - np.log(np.exp(expected).sum())
+    np.testing.assert_allclose(log_w, expected, atol=1e-12)
+    assert not degenerate
+
+
+def test_a_tempered_step_is_the_step_with_a_scaled_likelihood_and_keeps_its_spread():
+    """power p weighs as the likelihood scaled by p would (same draws); the posterior of a
+    Gaussian likelihood is then wider by 1/sqrt(p) about a flat prior."""
+    start = cond.init_gaussian(np.zeros(1), np.eye(1) * 25.0, 4000, np.random.default_rng(3))
+
+    def loglik(x):
+        return -0.5 * (x[:, 0] - 1.0) ** 2
+
+    a, info_a = cond.step(start, ar2(b0=0.0, mean=0.0, a1=1.0, a2=0.0), loglik, np.random.default_rng(7), power=0.25)
+    b, info_b = cond.step(start, ar2(b0=0.0, mean=0.0, a1=1.0, a2=0.0), lambda x: 0.25 * loglik(x),
+                          np.random.default_rng(7))
+    np.testing.assert_array_equal(a.cur, b.cur)
+    np.testing.assert_allclose(a.log_w, b.log_w, atol=1e-12)
+    np.testing.assert_allclose(info_a.loglik, loglik(a.cur))  # the likelihood itself
+    # about a prior of sd 5, the tempered posterior is N(.., 1 / (1/25 + 0.25)): sd 1.86, not 0.98
+    w = a.weights
+    mean = float(w @ a.cur[:, 0])
+    sd = math.sqrt(float(w @ (a.cur[:, 0] - mean) ** 2))
+    assert sd == pytest.approx(1.0 / math.sqrt(1 / 25 + 0.25), rel=0.1)
+
+
+@pytest.mark.parametrize("power", [0.0, -0.5, 1.5, float("nan")])
+def test_step_rejects_a_power_outside_zero_to_one(power):
+    start = cond.init_gaussian(np.zeros(1), np.eye(1), 10, np.random.default_rng(0))
+    with pytest.raises(ConfigError, match="power"):
+        cond.step(start, ar2(), lambda x: np.zeros(len(x)), np.random.default_rng(0), power=power)

@@ -95,3 +95,22 @@ def test_the_number_of_threads_does_not_change_the_track(tmp_path, monkeypatch):
         texts.append((out / name).read_text())
         _assert_as_pinned(name, out / name)
     assert texts[0] == texts[1]
+
+
+def test_the_discriminant_power_reaches_the_weights_and_leaves_the_papers_models_as_they_are(tmp_path, monkeypatch):
+    """``condensation.discriminant_power`` changes a default track; under the clutter model
+    (AC eq 12.2) the weights are the likelihood itself whatever it says."""
+    monkeypatch.chdir(ROOT)
+    name = "test.condensation.csv"
+    texts = {}
+    for label, lines in {"untempered": ["  discriminant_power: 1.0"],
+                         "clutter": ["  likelihood: clutter"],
+                         "clutter_tempered": ["  likelihood: clutter", "  discriminant_power: 0.2"]}.items():
+        cfg = tmp_path / f"{label}.yaml"
+        cfg.write_text("condensation:\n" + "\n".join(lines) + "\n")
+        out = tmp_path / label
+        res = CliRunner().invoke(cli, ["-q", "track", *RUNS[name], "-c", str(cfg), "-o", str(out), "--no-rrd"])
+        assert res.exit_code == 0, res.output
+        texts[label] = (out / name).read_text()
+    assert texts["untempered"] != (PINNED / name).read_text()
+    assert texts["clutter"] == texts["clutter_tempered"]

@@ -310,8 +310,10 @@ class StepInfo(NamedTuple):
 
 def weigh(samples: np.ndarray, loglik: Callable[[np.ndarray], np.ndarray],
           base: np.ndarray | float = 0.0, *, threads: int = 1,
-          parallel_min: int = PARALLEL_MIN) -> tuple[np.ndarray, np.ndarray, bool]:
-    """The weighting step of AC Fig 12.6: ``log π = base + log p(Z | X)``, normalised.
+          parallel_min: int = PARALLEL_MIN, power: float = 1.0) -> tuple[np.ndarray, np.ndarray, bool]:
+    """The weighting step of AC Fig 12.6: ``log π = base + log p(Z | X)``, normalised; with
+    ``power`` < 1, ``log π = base + power log p(Z | X)`` (a tempered likelihood, see
+    :class:`~trackcli.trackers.condensation_tracker.CondensationTracker`).
 
     ``loglik`` is called on blocks of at most :data:`LOGLIK_BLOCK` samples (bounded
     memory); ``base`` holds the log-weights the samples carry into the step (zeros after
@@ -361,7 +363,7 @@ def weigh(samples: np.ndarray, loglik: Callable[[np.ndarray], np.ndarray],
             score(b0)
     if (ll == np.inf).any():
         raise DataError("loglik: returned +inf; a log-likelihood must be finite or -inf")
-    log_w, degenerate = _log_normalise(base + ll)
+    log_w, degenerate = _log_normalise(base + (ll if power == 1.0 else power * ll))
     return ll, log_w, degenerate
 
 
@@ -400,6 +402,7 @@ def step(
     parallel_min: int = PARALLEL_MIN,
     motion: Callable[[np.ndarray, np.ndarray, np.random.Generator, np.ndarray],
                      tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None,
+    power: float = 1.0,
 ) -> tuple[ParticleSet, StepInfo]:
     """One CONDENSATION time-step: select, predict, weight (AC Fig 12.6).
 
@@ -443,6 +446,9 @@ def step(
         (its velocity is ``X_k - prev'``; usually ``cur``) and ``log_correction`` (n,) added to
         the log-weights (``-inf``: a state the motion model cannot produce).  Used by mixed-state dynamics
         (:mod:`trackcli.dynamics.mixed`), whose samples carry a label beside the shape.
+    power : float
+        Exponent on the likelihood in the weights (:func:`weigh`); 1 as in the papers.
+        ``StepInfo.loglik`` is ``log p(Z | X)`` itself.
 
     Returns
     -------
@@ -457,6 +463,8 @@ def step(
     n_out = particles.n if n_out is None else _check_count(n_out, "n_out")
     if scheme not in RESAMPLERS:
         raise ConfigError(f"resampling scheme: unknown value {scheme!r}; valid choices are {', '.join(RESAMPLERS)}")
+    if not 0 < power <= 1:
+        raise ConfigError(f"power: expected an exponent in (0, 1], got {power!r}")
     if ess_threshold is not None and not (0 < ess_threshold <= 1):
         raise ConfigError(f"ess_threshold: expected a ratio in (0, 1] or None, got {ess_threshold!r}")
 
@@ -481,7 +489,7 @@ def step(
     if propose is not None:
         cur, new, correction = propose(cur, new, rng)
         base = base + np.asarray(correction, dtype=np.float64)
-    ll, out_log_w, degenerate = weigh(new, loglik, base, threads=threads, parallel_min=parallel_min)
+    ll, out_log_w, degenerate = weigh(new, loglik, base, threads=threads, parallel_min=parallel_min, power=power)
     out = ParticleSet(prev=cur, cur=new, log_w=out_log_w)
     info = StepInfo(
         ess=effective_sample_size(np.exp(out_log_w)),
