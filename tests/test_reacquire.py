@@ -76,14 +76,19 @@ def track_rows(clip, tmp_path_factory):
     return track(clip, tmp_path_factory.mktemp("reacquire-out"))
 
 
-def track(clip: Path, out: Path, c0: tuple[float, float] = centre(0)) -> list[dict]:
-    """``draw --box`` about the oval at ``c0`` on frame 0, ``track`` with the defaults: the CSV's rows."""
+def track(clip: Path, out: Path, c0: tuple[float, float] = centre(0), config: str | None = None) -> list[dict]:
+    """``draw --box`` about the oval at ``c0`` on frame 0, ``track`` with the defaults (or with
+    ``config``, a YAML text of settings): the CSV's rows."""
     runner = CliRunner()
     box = f"{c0[0] - 24},{c0[1] - 30},48,60"
     r = runner.invoke(cli, ["draw", str(clip), "--box", box, "-o", str(out / "t.yaml")], catch_exceptions=False)
     assert r.exit_code == 0, r.output
+    extra = []
+    if config is not None:
+        (out / "settings.yaml").write_text(config)
+        extra = ["-c", str(out / "settings.yaml")]
     r = runner.invoke(cli, ["track", "--template", str(out / "t.yaml"), str(clip), "-o", str(out), "--no-rrd",
-                            "--seed", "0"], catch_exceptions=False)
+                            "--seed", "0", *extra], catch_exceptions=False)
     assert r.exit_code == 0, r.output
     with open(out / "oval.condensation.csv", newline="") as f:
         return list(csv.DictReader(f))
@@ -156,6 +161,29 @@ def test_reacquisition_starts_after_enough_lost_frames_in_a_row_or_in_a_flickeri
         assert not fed(flicker[1:] + [False]).reacquire  # one fewer lost in the window
         assert not fed([True, False, False] * 20).reacquire  # one in three: too thin
     assert not fed([True] * after + [False] * (2 * after - 1)).reacquire  # held long enough: over
+
+
+def test_a_place_found_after_a_loss_is_judged_against_a_stricter_centre(clip, track_rows, tmp_path):
+    """While the tracker recovers from a loss (lost on ``reacquire_after`` = 3 of the last 5
+    frames), the confidence is 0.5 at ``measurement.reacquired_centre`` (0.5) of the template's
+    score instead of ``presence_centre`` (0.3); on every other frame nothing changes.  Tracked
+    again with the two centres equal, the same seed gives the same samples as long as the
+    verdicts agree, so the confidences differ exactly on the recovering frames, and there
+    they are lower."""
+    same = track(clip, tmp_path, config="measurement:\n  reacquired_centre: 0.3\n")
+    lost = [r["lost"] == "1" for r in track_rows]
+    recovering = [sum(lost[max(0, k - 5):k]) >= 3 for k in range(len(lost))]
+    assert sum(recovering) > len(HIDDEN) - 5  # the hidden second and the first frames back
+    assert [r["lost"] for r in same] == [r["lost"] for r in track_rows]
+    for k, (strict, loose) in enumerate(zip(track_rows, same)):
+        assert strict["cx"] == loose["cx"]
+        if recovering[k]:
+            assert float(strict["confidence"]) < float(loose["confidence"]) or float(loose["confidence"]) == 0.0
+        else:
+            assert strict["confidence"] == loose["confidence"]
+    # the first frames back, before the verdict has settled, are the ones judged more strictly
+    back = [k for k in range(HIDDEN.stop, len(lost)) if recovering[k] and not lost[k]]
+    assert back and all(float(track_rows[k]["confidence"]) < float(same[k]["confidence"]) for k in back)
 
 
 # A look-alike across the frame: the object (the oval of the clip above) moves right, is hidden

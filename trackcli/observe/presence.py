@@ -77,7 +77,7 @@ class Presence:
                              miss=self.miss, colour_weight=self.colour_weight)
 
     def confidence(self, ev: observe.FrameEvidence, pts: np.ndarray, nrm: np.ndarray, spread: float,
-                   posterior_score: float | None = None) -> tuple[float, float, float]:
+                   posterior_score: float | None = None, centre: float | None = None) -> tuple[float, float, float]:
         """``(confidence, log D, log-likelihood)`` of one curve, ``spread`` its positional spread in
         object sizes; the log-likelihood is :meth:`score` of the curve.
 
@@ -85,6 +85,8 @@ class Presence:
         object (its weighted mean score per normal); the larger of it and the curve's own
         score is judged, so that a mean curve a few pixels off a well-supported posterior, or
         between the modes of one, is not called lost when the samples are on the object.
+        ``centre``, when given, replaces :attr:`centre` (the share of the reference at which
+        the confidence is 0.5).
         """
         s, e, _ = observe.presence(self.app, ev, pts, nrm, h=self.h, sigma=self.sigma, threshold=self.threshold,
                                    miss=self.miss, colour_weight=self.colour_weight)
@@ -92,5 +94,6 @@ class Presence:
         if posterior_score is not None and math.isfinite(posterior_score):
             s = max(s, posterior_score)
         visible = min(1.0, observe.visible_share(pts, ev.fimg.shape, ev.area) / self.visible_start)
-        conf = observe.confidence(s, spread, reference=self.reference, centre=self.centre, visible=visible)
+        conf = observe.confidence(s, spread, reference=self.reference,
+                                  centre=self.centre if centre is None else centre, visible=visible)
         return conf, e * pts.shape[0], total

@@ -168,7 +168,10 @@ class CondensationTracker(Tracker):
     posterior score use the likelihood itself.
 
     Every frame's confidence and ``lost`` verdict come from
-    :class:`~trackcli.observe.presence.Presence`.  The motion prior is a mixture of the AR(2)
+    :class:`~trackcli.observe.presence.Presence`; while the tracker recovers from a loss (the
+    :class:`~trackcli.trackers.base.LossRecord` below), with the stricter centre
+    ``measurement.reacquired_centre``: a place found after a loss is a priori less likely to
+    be the object than one followed from frame to frame.  The motion prior is a mixture of the AR(2)
     prediction and jumps (:func:`translation_jumps`); once the tracker has been lost on
     ``reacquire_after`` of the last ``2 reacquire_after - 1`` frames
     (:class:`~trackcli.trackers.base.LossRecord`), a share of the samples is drawn from the colour
@@ -339,7 +342,10 @@ class CondensationTracker(Tracker):
         held = w > 0
         discriminant = c.likelihood == "discriminant"
         post = float(w[held] @ ll[held]) / m.n_normals if discriminant else None
-        conf, log_d, score_mean = judge.confidence(ev, pts, nrm, spread, posterior_score=post)
+        # recovering from a loss, the place the samples found must look more like the object
+        # than one followed from frame to frame does (a stricter centre of the confidence)
+        strict = max(m.presence_centre, m.reacquired_centre) if self.losses.reacquire else None
+        conf, log_d, score_mean = judge.confidence(ev, pts, nrm, spread, posterior_score=post, centre=strict)
         loglik_mean = score_mean if discriminant else float(loglik(X[None])[0])
         lost = conf < m.lost_below
         self.losses.push(lost)
