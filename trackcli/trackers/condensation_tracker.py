@@ -168,10 +168,10 @@ class CondensationTracker(Tracker):
     posterior score use the likelihood itself.
 
     Every frame's confidence and ``lost`` verdict come from
-    :class:`~trackcli.observe.presence.Presence`; while the tracker recovers from a loss (the
-    :class:`~trackcli.trackers.base.LossRecord` below), with the stricter centre
-    ``measurement.reacquired_centre``: a place found after a loss is a priori less likely to
-    be the object than one followed from frame to frame.  The motion prior is a mixture of the AR(2)
+    :class:`~trackcli.observe.presence.Presence`.  While the tracker recovers from a loss (by
+    the :class:`~trackcli.trackers.base.LossRecord` rule below) the confidence is judged
+    against the stricter centre ``measurement.reacquired_centre``: a place found after a loss
+    is a priori less likely to be the object than one followed from frame to frame.  The motion prior is a mixture of the AR(2)
     prediction and jumps (:func:`translation_jumps`); once the tracker has been lost on
     ``reacquire_after`` of the last ``2 reacquire_after - 1`` frames
     (:class:`~trackcli.trackers.base.LossRecord`), a share of the samples is drawn from the colour
@@ -248,6 +248,9 @@ class CondensationTracker(Tracker):
         # the weights take the discriminant to the power discriminant_power (tempered); the
         # papers' models as they are
         self.power = c.discriminant_power if c.likelihood == "discriminant" else 1.0
+        # the confidence's centre while recovering from a loss (never below the usual one)
+        m = settings.measurement
+        self.recovery_centre = max(m.presence_centre, m.reacquired_centre)
 
     def _start(self, frame: FrameData) -> None:
         c, space = self.settings.condensation, self.space
@@ -344,7 +347,7 @@ class CondensationTracker(Tracker):
         post = float(w[held] @ ll[held]) / m.n_normals if discriminant else None
         # recovering from a loss, the place the samples found must look more like the object
         # than one followed from frame to frame does (a stricter centre of the confidence)
-        strict = max(m.presence_centre, m.reacquired_centre) if self.losses.reacquire else None
+        strict = self.recovery_centre if self.losses.reacquire else None
         conf, log_d, score_mean = judge.confidence(ev, pts, nrm, spread, posterior_score=post, centre=strict)
         loglik_mean = score_mean if discriminant else float(loglik(X[None])[0])
         lost = conf < m.lost_below
