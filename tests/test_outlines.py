@@ -17,7 +17,7 @@ from trackcli.cli import cli
 from trackcli.errors import InputError
 from trackcli.run.evaluate import GroundTruth, Track, coverage_notes, load_track, load_truth, polygon_iou, score_frames
 from trackcli.sample_data import load_outline, load_truth as load_sample_truth, polygon_centroid, true_outline
-from trackcli.io.tracks import BoxCarry, DrawnBox, outline_header, read_outlines
+from trackcli.io.tracks import BoxCarry, DrawnBox, clip_box, outline_header, read_outlines
 from trackcli.shapes.template import load_template
 
 
@@ -353,3 +353,51 @@ def test_a_track_from_a_box_reports_the_drawn_box_and_output_box_outline_the_con
     run(["track", ellipse_clip, "--template", ell, "--tracker", "kalman", "--no-rrd", "-o", tmp_path / "c"], 0)
     np.testing.assert_allclose(_first_box(tmp_path / "c" / "ellipse.kalman.csv"),
                                outline_box(tmp_path / "c" / "ellipse.kalman.csv"), atol=0.6)
+
+
+# ---------------------------------------------------------------------------------------------
+# The box clipped to the frame
+
+
+@settings(max_examples=100, deadline=None)
+@given(box=st.tuples(st.floats(-300, 500), st.floats(-300, 500), st.floats(0.5, 400), st.floats(0.5, 400)))
+def test_the_box_is_its_part_inside_the_frame_or_itself_when_none_of_it_is(box):
+    size = (160, 120)
+    x, y, w, h = box
+    out = clip_box(box, size)
+    ix0, iy0, ix1, iy1 = max(x, 0), max(y, 0), min(x + w, size[0]), min(y + h, size[1])
+    if ix1 > ix0 and iy1 > iy0:
+        np.testing.assert_allclose(out, (ix0, iy0, ix1 - ix0, iy1 - iy0), atol=1e-9)
+        assert out[0] >= 0 and out[1] >= 0 and out[0] + out[2] <= size[0] + 1e-9 and out[1] + out[3] <= size[1] + 1e-9
+    else:  # nothing of it in view: the box as it was
+        assert out == tuple(float(v) for v in box)
+
+
+def test_a_box_inside_the_frame_or_not_finite_is_left_as_it_is():
+    assert clip_box((10, 20, 30, 40), (160, 120)) == (10.0, 20.0, 30.0, 40.0)
+    nan = float("nan")
+    out = clip_box((nan, 20, 30, 40), (160, 120))
+    assert np.isnan(out[0]) and out[1:] == (20.0, 30.0, 40.0)
+
+
+def test_an_outline_reaching_beyond_the_frame_has_its_box_clipped_and_its_outline_kept(tmp_path, ellipse_clip):
+    """An ellipse drawn over the frame's left edge: the box columns give the part in view, the
+    outline columns the whole curve."""
+    tmpl = tmp_path / "edge.yaml"
+    run(["draw", ellipse_clip, "--ellipse", "12,60,28,36", "-o", tmpl], 0)
+    run(["track", ellipse_clip, "--template", tmpl, "--tracker", "kalman", "--no-rrd", "-o", tmp_path], 0)
+    csv_path = tmp_path / "ellipse.kalman.csv"
+    _, outlines, _ = read_outlines(csv_path)
+    with open(csv_path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == len(outlines) == CLIP_FRAMES
+    beyond = 0
+    for r, pts in zip(rows, outlines):
+        x, y, w, h = (float(r[k]) for k in ("bbox_x", "bbox_y", "bbox_w", "bbox_h"))
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        assert x >= 0 and y >= 0 and x + w <= 160 + 1e-3 and y + h <= 120 + 1e-3
+        if lo[0] < -1:  # the curve reaches beyond the left edge: the box starts at it
+            beyond += 1
+            assert x == 0.0
+            assert x + w == pytest.approx(hi[0], abs=0.01)
+    assert beyond == CLIP_FRAMES

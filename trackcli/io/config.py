@@ -233,7 +233,8 @@ class OutputSettings:
                              "(outline_x0, outline_y0, ...); 0 = none, otherwise at least 2", lo=0, hi=1000)
     box: str = _f("drawn", "str", "the box columns of the track CSV (bbox_x, ...): drawn (when the tracker starts at a template "
                   "drawn with draw --box, that box carried along by the estimate, so that it is scored in the convention "
-                  "it was given in; otherwise the contour's box) or outline (always the tight box of the estimated contour)",
+                  "it was given in; otherwise the contour's box) or outline (always the tight box of the estimated contour); "
+                  "either clipped to the frame (the part in view, as benchmark annotations give it)",
                   choices=("drawn", "outline"))
 
 

@@ -14,6 +14,7 @@ Columns, in order:
     the object's box, px: the tight box of the estimated contour; when the tracker started
     at a template drawn from a box (``draw --box``) and ``output.box`` is ``drawn`` (the
     default), that box carried along by the estimate (:class:`BoxCarry`, :class:`DrawnBox`);
+    either clipped to the frame (:func:`clip_box`);
 ``n_found, n_normals``
     measurement normals that found a feature, and how many there are;
 ``gate_rms``
@@ -152,14 +153,36 @@ class DrawnBox:
         return BoxCarry.between(self.box, anchor)
 
 
-def row(result, carry: BoxCarry | None = None) -> list[str]:
+def clip_box(box: Sequence[float], frame_size: tuple[int, int]) -> tuple[float, float, float, float]:
+    """The part of the box ``(x, y, w, h)`` inside a frame of ``frame_size = (width, height)``.
+
+    An object that has partly left the frame is annotated by its part in view (benchmark
+    truth boxes lie inside the image), and the estimate's box is reported the same way: the
+    box of an outline half beyond the frame's lower edge would otherwise be centred near
+    the edge, half an object's height from the centre of what is visible.  A box wholly
+    outside the frame (or not finite) is returned as it is: there is no part in view to
+    give, and the tracker's verdict says the object is not held.
+    """
+    x, y, w, h = (float(v) for v in box)
+    x0, y0 = max(x, 0.0), max(y, 0.0)
+    x1, y1 = min(x + w, float(frame_size[0])), min(y + h, float(frame_size[1]))
+    if not (x1 > x0 and y1 > y0):  # also False for NaN
+        return (x, y, w, h)
+    return (x0, y0, x1 - x0, y1 - y0)
+
+
+def row(result, carry: BoxCarry | None = None, frame_size: tuple[int, int] | None = None) -> list[str]:
     """CSV cells of one :class:`~trackcli.trackers.base.FrameResult` (without its extras and
-    outline); with ``carry``, the box columns hold the carried box."""
+    outline); with ``carry``, the box columns hold the carried box; with ``frame_size``
+    ``(width, height)``, the box is clipped to the frame (:func:`clip_box`)."""
     cells = [str(result.index), f"{result.time:.6f}"]
     cells += _fmt_all(result.X, 8)
     cells += _fmt_all(result.X_std, 6)
     cells += [_fmt(float(result.centroid[0]), 3), _fmt(float(result.centroid[1]), 3)]
-    cells += [_fmt(float(v), 3) for v in (result.bbox if carry is None else carry(result.bbox))]
+    box = result.bbox if carry is None else carry(result.bbox)
+    if frame_size is not None:
+        box = clip_box(box, frame_size)
+    cells += [_fmt(float(v), 3) for v in box]
     cells += [str(result.n_found), str(result.n_normals), _fmt(result.gate_rms, 4), _fmt(result.ess, 6),
               _fmt(result.loglik, 6), "1" if result.lost else "0",
               _fmt(float(getattr(result, "confidence", math.nan)), 4), _fmt(float(getattr(result, "log_d", math.nan)), 5)]
@@ -214,13 +237,16 @@ class TrackWriter:
 
     With ``outline`` (an :class:`OutlineColumns`), every row ends with the outline columns;
     with ``drawn`` (a :class:`DrawnBox`), the box columns hold the drawn box carried by the
-    estimate.
+    estimate; with ``frame_size`` ``(width, height)``, the box columns are clipped to the
+    frame (:func:`clip_box`).
     """
 
     def __init__(self, path: str | Path, names: Sequence[str], outline: OutlineColumns | None = None,
-                 extra: Sequence[str] | None = None, drawn: DrawnBox | None = None):
+                 extra: Sequence[str] | None = None, drawn: DrawnBox | None = None,
+                 frame_size: tuple[int, int] | None = None):
         self.path = Path(path)
         self._drawn = drawn
+        self._frame_size = frame_size
         self._carry: BoxCarry | None = None
         self._outline = outline
         self._extra = list(extra or [])
@@ -233,7 +259,7 @@ class TrackWriter:
     def write(self, result) -> None:
         if self._drawn is not None:  # anchored on the first result
             self._carry, self._drawn = self._drawn.carry(result), None
-        cells = row(result, self._carry)
+        cells = row(result, self._carry, self._frame_size)
         if self._extra:
             cells += [_fmt(float(result.extra.get(e, math.nan)), 6) for e in self._extra]
         if self._outline is not None:

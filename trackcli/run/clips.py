@@ -192,7 +192,10 @@ def run_clip(
     rec_ctx = None
     rec = None
     log_frame = None
-    smooth_ctx = TrackWriter(smooth_csv_path, space.names, outline, extra_columns, drawn) if smoother is not None else contextlib.nullcontext()
+    # the box columns hold the part of the box inside the frame, as benchmark annotations do
+    size = (video.width, video.height) if getattr(video, "width", None) and getattr(video, "height", None) else None
+    smooth_ctx = (TrackWriter(smooth_csv_path, space.names, outline, extra_columns, drawn, frame_size=size)
+                  if smoother is not None else contextlib.nullcontext())
     smoothed_centroids: list[tuple[int, float, float, float]] = []
 
     def write_smoothed(done: list[Any]) -> None:
@@ -210,7 +213,8 @@ def run_clip(
             rec_ctx = Recording(rrd_path, app_id="trackcli", recording_id=recording_id, blueprint="track",
                                 properties=properties)
             rec = rec_ctx.__enter__()
-        with TrackWriter(csv_path, space.names, outline, extra_columns, drawn) as writer, smooth_ctx as smooth_writer:
+        with (TrackWriter(csv_path, space.names, outline, extra_columns, drawn, frame_size=size) as writer,
+              smooth_ctx as smooth_writer):
             if rec is not None:
                 rec.log_params("params", params)
                 from trackcli.io.recording import frame_storage
