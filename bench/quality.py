@@ -361,6 +361,7 @@ def _peer_factory(name: str):
 def run_peer(name: str, clip: Clip, work: Path) -> dict | None:
     import cv2
 
+    from trackcli.io.tracks import clip_box
     from trackcli.io.video import open_video
 
     factory = _peer_factory(name)
@@ -384,7 +385,8 @@ def run_peer(name: str, clip: Clip, work: Path) -> dict | None:
                 ok, b = True, box
             else:
                 ok, b = tracker.update(frame.image)
-            x, y, w, h = (float(v) for v in b)
+            # clipped to the frame as trackcli's box columns are (the part of the object in view)
+            x, y, w, h = clip_box(b, (wid, hgt))
             rows.append(f"{frame.index},{frame.time},{x + w / 2},{y + h / 2},{x},{y},{w},{h},{0 if ok else 1}")
     csv = work / f"{clip.name}.{name}.csv"
     csv.write_text("\n".join(rows) + "\n")
@@ -417,7 +419,7 @@ def _peer_runs(name: str, clip: Clip, work: Path, runs: int) -> dict | None:
 def peer_results(clips: list[Clip], cache: Path) -> dict:
     import cv2
 
-    path = cache / f"peers-{cv2.__version__}-x{PEER_RUNS}.json"
+    path = cache / f"peers-{cv2.__version__}-x{PEER_RUNS}-clipped.json"
     done = json.loads(path.read_text()) if path.is_file() else {}
     work = Path(tempfile.mkdtemp(prefix="peers-"))
     for clip in clips:

@@ -158,10 +158,10 @@ def clip_box(box: Sequence[float], frame_size: tuple[int, int]) -> tuple[float, 
 
     An object that has partly left the frame is annotated by its part in view (benchmark
     truth boxes lie inside the image), and the estimate's box is reported the same way: the
-    box of an outline half beyond the frame's lower edge would otherwise be centred near
-    the edge, half an object's height from the centre of what is visible.  A box wholly
-    outside the frame (or not finite) is returned as it is: there is no part in view to
-    give, and the tracker's verdict says the object is not held.
+    box of an outline half beyond the frame's lower edge would otherwise be centred on the
+    edge, a quarter of the object's height below the centre of what is visible.  A box
+    wholly outside the frame (or not finite) is returned as it is: there is no part in view
+    to give.
     """
     x, y, w, h = (float(v) for v in box)
     x0, y0 = max(x, 0.0), max(y, 0.0)

@@ -4,7 +4,8 @@ Two inputs meet here:
 
 - **Predictions**: trackcli's per-frame estimates CSV (the "track format").  The columns used
   are ``frame`` (original frame index), ``cx, cy`` (centroid of the estimated contour),
-  ``bbox_x, bbox_y, bbox_w, bbox_h`` (tight box of the estimated contour) and, if present,
+  ``bbox_x, bbox_y, bbox_w, bbox_h`` (the object's box: the contour's, or the box the template
+  was drawn from carried by it; clipped to the frame) and, if present,
   ``lost`` (0/1).  Every other column is ignored.  The rows may cover a subset of the clip
   (``--start`` / ``--step``).
 - **Ground truth**, recognised by its content:
