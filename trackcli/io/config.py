@@ -121,7 +121,7 @@ class MeasurementSettings:
     threshold: float = _f(8.0, "float", "contrast threshold, grey levels per px", lo=0)
     polarity: str = _f("any", "str", "edge polarity accepted, relative to the outward normal (the discriminant learns it per normal instead)", choices=("any", "light_to_dark", "dark_to_light"))
     presence_centre: float = _f(0.3, "float", "fraction of the template's presence score on the first frame (evidence per normal, trackcli.observe.discriminant) at which the confidence is 0.5", lo=0, hi=1)
-    reacquired_centre: float = _f(0.5, "float", "presence_centre while the tracker is recovering from a loss (CONDENSATION lost on condensation.reacquire_after of the last frames): a place found after a loss needs more evidence than one followed from frame to frame; at least presence_centre", lo=0, hi=1)
+    reacquired_centre: float = _f(0.5, "float", "presence_centre while the tracker is recovering from a loss (CONDENSATION lost on condensation.reacquire_after of the last frames): a place found after a loss needs more evidence than one followed from frame to frame; a value below presence_centre counts as presence_centre", lo=0, hi=1)
     lost_below: float = _f(0.5, "float", "a frame is reported lost when its confidence is below this", lo=0, hi=1)
 
 

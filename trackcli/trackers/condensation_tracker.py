@@ -171,8 +171,10 @@ class CondensationTracker(Tracker):
     :class:`~trackcli.observe.presence.Presence`.  While the tracker recovers from a loss (by
     the :class:`~trackcli.trackers.base.LossRecord` rule below) the confidence is judged
     against the stricter centre ``measurement.reacquired_centre``: a place found after a loss
-    is a priori less likely to be the object than one followed from frame to frame.  The motion prior is a mixture of the AR(2)
-    prediction and jumps (:func:`translation_jumps`); once the tracker has been lost on
+    is a priori less likely to be the object than one followed from frame to frame.
+
+    The motion prior is a mixture of the AR(2) prediction and jumps
+    (:func:`translation_jumps`); once the tracker has been lost on
     ``reacquire_after`` of the last ``2 reacquire_after - 1`` frames
     (:class:`~trackcli.trackers.base.LossRecord`), a share of the samples is drawn from the colour
     proposal of :func:`trackcli.observe.discriminant.reacquisition_proposal` with its
