@@ -17,11 +17,17 @@ normals, then finding the maxima and summing over them) — and the serial part:
 of a step during which no thread is scoring samples (selection, prediction, handing the
 blocks to the threads and collecting them, normalising the weights).  ``/N=1000`` is the cost relative to N = 1000.
 
+``--ceiling`` then runs the one-thread step in two processes at once, each held to its own
+CPU, sharing nothing: the step time each of them gets, and the speed-up two processes give
+over one (four times the one-thread step over the sum of theirs).  That is the most a second
+thread can give on this machine; on virtual machines whose two CPUs share a physical core,
+or the memory of a busy host, it is well below 2.
+
 Usage::
 
     python bench/bench_condensation.py [--frames 40] [--sizes 100,300,1000,3000,10000]
                                        [--normals 24] [--curves matrix|trackcli] [--repeat 3]
-                                       [--threads 1,2] [--likelihood discriminant|clutter]
+                                       [--threads 1,2] [--likelihood discriminant|clutter] [--ceiling]
 """
 
 from __future__ import annotations
@@ -32,6 +38,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMB
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
+import multiprocessing  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -275,6 +282,9 @@ def main() -> None:
                         help="curve evaluation: this script's matrix product, or trackcli's spline + shape-space")
     parser.add_argument("--likelihood", choices=("discriminant", "clutter"), default="discriminant",
                         help="observation model: the default contour discriminant with colour, or AC eq 12.2")
+    parser.add_argument("--ceiling", action="store_true",
+                        help="also run the one-thread step in two processes at once, one per CPU: the most two "
+                             "threads can gain on this machine")
     args = parser.parse_args()
     cv2.setNumThreads(1)
 
@@ -325,6 +335,52 @@ def main() -> None:
             print(f"{t:>3} {n:>6} {r['median']:>8.2f} {r['mean']:>7.2f} {sel:>8} {r['curves']:>7.2f} "
                   f"{r['likelihood']:>7.2f} {r['serial']:>7.2f} {1e6 * r['median'] / n:>7.0f} {1e3 / r['median']:>6.0f} {ratio:>8} "
                   f"{speed:>8} {r['error']:>7.1f}")
+    if args.ceiling:
+        ceiling(sizes, args, frames, fimgs, model, dyn, score, {n: rows[1, n] for n in sizes if (1, n) in rows})
+
+
+def _paired(cpu, barrier, results, sizes, args, frames, fimgs, model, dyn, score) -> None:
+    """One of the two processes of :func:`ceiling`: the best median of each size into ``results``."""
+    if cpu is not None:
+        os.sched_setaffinity(0, {cpu})
+    for _ in range(args.repeat):
+        for n in sizes:
+            barrier.wait()  # both processes step at the same time
+            r = run(n, frames, fimgs, model, dyn, args.frames, args.normals, seed=n, threads=1, score=score)
+            if n not in results or r["median"] < results[n]:
+                results[n] = r["median"]
+
+
+def ceiling(sizes, args, frames, fimgs, model, dyn, score, single) -> None:
+    """The one-thread step in two processes at once, each held to its own CPU (when the
+    system lets a process choose its CPUs): what two cores give with nothing shared."""
+    cpus = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
+    if len(cpus) < 2:
+        print("\n--ceiling: this process may use only one CPU")
+        return
+    ctx = multiprocessing.get_context("fork")  # the children inherit the frames and the model
+    with ctx.Manager() as manager:
+        barrier = ctx.Barrier(2)
+        results = [manager.dict(), manager.dict()]
+        procs = [ctx.Process(target=_paired, args=(cpus[i], barrier, results[i], sizes, args, frames, fimgs, model,
+                                                   dyn, score)) for i in range(2)]
+        for p in procs:
+            p.start()
+        for p in procs:
+            p.join()
+        if any(p.exitcode for p in procs):
+            print("\n--ceiling: a process failed")
+            return
+        results = [dict(r) for r in results]
+    print(f"\ntwo processes at once, one thread each, on CPUs {cpus[0]} and {cpus[1]} (load average "
+          f"{os.getloadavg()[0]:.2f}):")
+    header = f"{'N':>6} {'alone ms':>9} {'pair ms':>15} {'two-process speed-up':>21}"
+    print(header)
+    print("-" * len(header))
+    for n in sizes:
+        a, b = results[0][n], results[1][n]
+        alone = single[n]["median"] if n in single else float("nan")
+        print(f"{n:>6} {alone:>9.2f} {a:>7.2f} {b:>7.2f} {4 * alone / (a + b):>21.2f}")
 
 
 TRUTH = np.zeros((1, 2))
