@@ -20,8 +20,8 @@ blocks to the threads and collecting them, normalising the weights).  ``/N=1000`
 ``--ceiling`` then runs the one-thread step in two processes at once, each held to its own
 CPU, sharing nothing: the step time each of them gets, and the speed-up two processes give
 over one (four times the one-thread step over the sum of theirs).  That is the most a second
-thread can give on this machine; on virtual machines whose two CPUs share a physical core,
-or the memory of a busy host, it is well below 2.
+thread can give on this machine; on a virtual machine it depends on the host's other work,
+and can be well below 2.
 
 Usage::
 
@@ -343,12 +343,16 @@ def _paired(cpu, barrier, results, sizes, args, frames, fimgs, model, dyn, score
     """One of the two processes of :func:`ceiling`: the best median of each size into ``results``."""
     if cpu is not None:
         os.sched_setaffinity(0, {cpu})
-    for _ in range(args.repeat):
-        for n in sizes:
-            barrier.wait()  # both processes step at the same time
-            r = run(n, frames, fimgs, model, dyn, args.frames, args.normals, seed=n, threads=1, score=score)
-            if n not in results or r["median"] < results[n]:
-                results[n] = r["median"]
+    try:
+        for _ in range(args.repeat):
+            for n in sizes:
+                barrier.wait()  # both processes step at the same time
+                r = run(n, frames, fimgs, model, dyn, args.frames, args.normals, seed=n, threads=1, score=score)
+                if n not in results or r["median"] < results[n]:
+                    results[n] = r["median"]
+    except BaseException:
+        barrier.abort()  # the other process stops waiting for this one
+        raise
 
 
 def ceiling(sizes, args, frames, fimgs, model, dyn, score, single) -> None:
@@ -360,7 +364,7 @@ def ceiling(sizes, args, frames, fimgs, model, dyn, score, single) -> None:
         return
     ctx = multiprocessing.get_context("fork")  # the children inherit the frames and the model
     with ctx.Manager() as manager:
-        barrier = ctx.Barrier(2)
+        barrier = ctx.Barrier(2, timeout=3600)
         results = [manager.dict(), manager.dict()]
         procs = [ctx.Process(target=_paired, args=(cpus[i], barrier, results[i], sizes, args, frames, fimgs, model,
                                                    dyn, score)) for i in range(2)]
@@ -379,7 +383,7 @@ def ceiling(sizes, args, frames, fimgs, model, dyn, score, single) -> None:
     print("-" * len(header))
     for n in sizes:
         a, b = results[0][n], results[1][n]
-        alone = single[n]["median"] if n in single else float("nan")
+        alone = single[n]["median"] if n in single else float("nan")  # nan without --threads 1
         print(f"{n:>6} {alone:>9.2f} {a:>7.2f} {b:>7.2f} {4 * alone / (a + b):>21.2f}")
 
 
