@@ -341,8 +341,7 @@ def main() -> None:
 
 def _paired(cpu, barrier, results, sizes, args, frames, fimgs, model, dyn, score) -> None:
     """One of the two processes of :func:`ceiling`: the best median of each size into ``results``."""
-    if cpu is not None:
-        os.sched_setaffinity(0, {cpu})
+    os.sched_setaffinity(0, {cpu})
     try:
         for _ in range(args.repeat):
             for n in sizes:

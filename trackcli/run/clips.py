@@ -193,7 +193,7 @@ def run_clip(
     rec = None
     log_frame = None
     # the box columns hold the part of the box inside the frame, as benchmark annotations do
-    size = (video.width, video.height) if getattr(video, "width", None) and getattr(video, "height", None) else None
+    size = (video.width, video.height)
     smooth_ctx = (TrackWriter(smooth_csv_path, space.names, outline, extra_columns, drawn, frame_size=size)
                   if smoother is not None else contextlib.nullcontext())
     smoothed_centroids: list[tuple[int, float, float, float]] = []
