@@ -720,3 +720,52 @@ def test_a_hand_is_its_hull_with_few_control_points_and_traced_with_enough():
     iou_enough = draw.mask_iou(template_mask(enough, (400, 400)), mask)
     assert iou_few < 0.6 and iou_enough > 0.88
     assert draw.fit_error(enough, outline) <= 0.1 * np.sqrt(cv2.contourArea(outline.astype(np.float32)))
+
+
+def test_an_outline_twelve_control_points_cannot_follow_is_fitted_with_more_before_the_hull(caplog):
+    # draw's default: 12 control points, and where those would give the hull, 24 if they follow
+    # the outline and cover the object clearly better than the hull does
+    mask = _hand_mask()
+    outline = draw.mask_outline(mask).astype(float)
+    with caplog.at_level(logging.WARNING, logger="trackcli"):
+        t = draw.fit_template(outline, draw.DEFAULT_CTRL, detail_ctrl=draw.DETAIL_CTRL, source="mask")
+    assert t.n_ctrl == draw.DETAIL_CTRL and t.source.startswith("mask") and t.source.endswith("(24 control points)")
+    assert "convex hull" not in t.source
+    assert draw.mask_iou(template_mask(t, (400, 400)), mask) > 0.9
+    assert draw.fit_error(t, outline) <= 0.1 * np.sqrt(cv2.contourArea(outline.astype(np.float32)))
+    # one warning, for the fit taken: the trial fit with 24 says nothing of its own
+    warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    assert len(warnings) == 1 and "fitted with 24" in warnings[0], warnings
+
+
+def test_more_control_points_do_not_replace_a_hull_that_covers_the_object_well():
+    # a disc with a deep, narrow cut: 12 control points cannot follow the cut, 24 can, but the
+    # hull already covers the disc nearly as well, and it smooths over the errors of a mask
+    m = np.zeros((300, 300), np.uint8)
+    cv2.circle(m, (150, 150), 100, 255, -1)
+    cv2.line(m, (150, 150), (150, 45), 0, 9)
+    outline = draw.mask_outline(m).astype(float)
+    hull = cv2.fillConvexPoly(np.zeros_like(m), cv2.convexHull(outline.astype(np.int32)), 255)
+    assert draw.mask_iou(hull, m) > 1.0 - draw.REFIT_GAIN  # no fit can cover it REFIT_GAIN better
+    t = draw.fit_template(outline, 12, detail_ctrl=24)
+    assert t.n_ctrl == 12 and t.source.endswith("(convex hull)")
+
+
+def test_draw_takes_more_control_points_only_when_none_are_given(tmp_path):
+    mask = _hand_mask()
+    frames = tmp_path / "hand"
+    frames.mkdir()
+    image = np.full((400, 400, 3), 200, np.uint8)
+    image[mask > 0] = (60, 90, 150)
+    cv2.imwrite(str(frames / "0001.png"), image)
+    cv2.imwrite(str(tmp_path / "mask.png"), mask)
+    runner = CliRunner()
+    auto = runner.invoke(cli, ["draw", str(frames), "--fps", "25", "--mask", str(tmp_path / "mask.png"),
+                               "-o", str(tmp_path / "auto.yaml")])
+    assert auto.exit_code == 0, auto.output
+    assert load_template(tmp_path / "auto.yaml").n_ctrl == 24
+    given = runner.invoke(cli, ["draw", str(frames), "--fps", "25", "--mask", str(tmp_path / "mask.png"),
+                                "--n-ctrl", "12", "-o", str(tmp_path / "given.yaml")])
+    assert given.exit_code == 0, given.output
+    t = load_template(tmp_path / "given.yaml")
+    assert t.n_ctrl == 12 and t.source.endswith("(convex hull)")

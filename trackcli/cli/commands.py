@@ -171,8 +171,9 @@ def config_check(file: str) -> None:
                    "--parts left_eye:341,214,22,14: its box and image patch are stored with the outline. With "
                    "--parts alone the outline is the ellipse around the parts (semi-axes 0.8 and 0.9 of their "
                    "bounding box).")
-@click.option("--n-ctrl", type=click.IntRange(min=3, max=200), default=12, show_default=True,
-              help="Number of spline control points.")
+@click.option("--n-ctrl", type=click.IntRange(min=3, max=200),
+              help="Number of spline control points.  [default: 12, or 24 for an outline with detail 12 cannot "
+                   "follow, such as an open hand's fingers, where 24 cover it clearly better than its convex hull]")
 @click.option("--degree", type=click.IntRange(min=1, max=5), default=2, show_default=True,
               help="Spline degree (2 = quadratic).")
 @click.option("--open", "open_curve", is_flag=True, help="Open curve (default closed); only with --points.")
@@ -193,8 +194,8 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
 
     When the fit strays from the outline (by more than a tenth of the object's size), draw
     falls back and says so, in a warning and in the template's `source`: thin parts opened
-    away, a refit that may not fold, or the outline's convex hull (more control points,
-    --n-ctrl, follow more detail).
+    away, a refit that may not fold, twice the control points (when --n-ctrl is not given),
+    or the outline's convex hull (more control points, --n-ctrl, follow more detail).
 
     \b
     Examples:
@@ -254,8 +255,9 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
     else:
         outline = draw.mask_outline(draw.load_mask(mask, size))
         source = f"mask {mask}"
-    template = draw.fit_template(outline, n_ctrl, degree=degree, closed=not open_curve, clip=str(clip),
-                                 frame=frame_index, frame_size=size, source=source)
+    template = draw.fit_template(outline, n_ctrl or draw.DEFAULT_CTRL, degree=degree, closed=not open_curve,
+                                 clip=str(clip), frame=frame_index, frame_size=size, source=source,
+                                 detail_ctrl=None if n_ctrl else draw.DETAIL_CTRL)
     if box:
         template = dataclasses.replace(template, box=tuple(b))
     if specs:
@@ -271,7 +273,7 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
             tmps[1].write_bytes(buf.tobytes())
             if rrd:
                 draw.record_template(tmps[2], frame.image, template, n_normals=n_normals)
-    log.info("template %s (%d control points) from %s", out, n_ctrl, source)
+    log.info("template %s (%d control points) from %s", out, template.n_ctrl, source)
     click.echo(f"wrote {out} and {png}" + (f" and {rrd}" if rrd else ""))
 
 

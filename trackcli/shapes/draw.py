@@ -15,6 +15,7 @@ squares (:func:`trackcli.shapes.spline.fit`).
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import re
@@ -197,6 +198,10 @@ TEXTURE_GAIN = 4.0
 #: object (IoU with the outline) by at least this much more than the convex hull does; else
 #: the hull is taken
 REFIT_GAIN = 0.1
+#: control points of ``draw`` when none are asked for; an outline with detail that many cannot
+#: follow (an open hand's fingers) is fitted with DETAIL_CTRL before the convex hull is taken
+DEFAULT_CTRL = 12
+DETAIL_CTRL = 24
 
 
 def segment_runs(image_bgr: np.ndarray) -> int:
@@ -573,8 +578,17 @@ def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: bool = True, clip: str | None = None,
-                 frame: int = 0, frame_size: tuple[int, int] | None = None, source: str = ""):
-    """Fit a B-spline with ``n_ctrl`` control points to an ordered outline; return a Template."""
+                 frame: int = 0, frame_size: tuple[int, int] | None = None, source: str = "",
+                 detail_ctrl: int | None = None, _quiet: bool = False):
+    """Fit a B-spline with ``n_ctrl`` control points to an ordered outline; return a Template.
+
+    A fit that strays from the outline falls back (thin parts opened away, a refit without
+    folds, the convex hull; see ``draw``).  With ``detail_ctrl`` > ``n_ctrl``, an outline that
+    would get its convex hull is first fitted with ``detail_ctrl`` control points, and that fit
+    is taken if it is not a hull itself and covers the object (IoU with the outline) at least
+    :data:`REFIT_GAIN` better than the hull: the fingers of an open hand rather than the hull
+    about them, which takes in the background between them.
+    """
     from trackcli.shapes.spline import fit
     from trackcli.shapes.template import Template
 
@@ -589,6 +603,7 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
                         frame=frame, frame_size=frame_size, source=source + note)
 
     template = make(fit(outline, n_ctrl, degree=degree, closed=closed))
+    warn = log.warning if not _quiet else (lambda *args: None)  # a trial fit says nothing
     if not (closed and len(outline) >= 3):
         return template
     import cv2
@@ -619,8 +634,8 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
         smooth_t = make(fit(opened, n_ctrl, degree=degree, closed=True), " (thin parts removed)")
         err_s = fit_error(smooth_t, opened)
         if err_s <= tol and keeps_extent:
-            log.warning("the outline has thin parts the %d-control-point fit strayed on (%.0f px off); "
-                        "they were removed (%.0f px)", n_ctrl, err, err_s)
+            warn("the outline has thin parts the %d-control-point fit strayed on (%.0f px off); "
+                 "they were removed (%.0f px)", n_ctrl, err, err_s)
             return smooth_t
     # The refinement can also fold the curve into a loop where the outline turns sharply (a
     # bust's neck: 12 control points ended 19 px off the outline, with or without the opening).
@@ -632,6 +647,7 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
     tries = [(outline, " (fitted without folds)")]
     if keeps_extent:
         tries.append((opened, " (thin parts removed, fitted without folds)"))
+    hull_iou = polygon_iou(hull, outline)
     best = None
     for pts, note in tries:
         t = make(fit(_resample_polygon(pts, max(16 * n_ctrl, 192), True), n_ctrl, degree=degree, closed=True,
@@ -639,19 +655,30 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
         e = fit_error(t, pts)
         if e <= tol and (best is None or e < best[0]):
             best = (e, t)
-    if best is not None and (polygon_iou(dense_polygon(best[1].Q, best[1].basis()), outline)
-                             >= polygon_iou(hull, outline) + REFIT_GAIN):
-        log.warning("the %d-control-point fit folded on the outline (%.0f px off it); "
-                    "refitted without folds (%.0f px)", n_ctrl, err, best[0])
+    if best is not None and polygon_iou(dense_polygon(best[1].Q, best[1].basis()), outline) >= hull_iou + REFIT_GAIN:
+        warn("the %d-control-point fit folded on the outline (%.0f px off it); "
+             "refitted without folds (%.0f px)", n_ctrl, err, best[0])
         return best[1]
     # A deep, narrow concavity (a swan's neck, an arm held out) that n_ctrl control points
-    # cannot follow can also throw the fit off; the convex hull is smooth, always fits, and is
-    # what a contour of this many control points can track.
+    # cannot follow can also throw the fit off.  More control points may follow it (an open
+    # hand's fingers); taken only where they cover the object clearly better than the hull,
+    # which smooths over a mask's errors (a plastic bag's crumpled outline).
+    if detail_ctrl is not None and detail_ctrl > n_ctrl:
+        detailed = fit_template(outline, detail_ctrl, degree=degree, closed=True, clip=clip, frame=frame,
+                                frame_size=frame_size, source=source, _quiet=True)
+        iou = polygon_iou(dense_polygon(detailed.Q, detailed.basis()), outline)
+        if not detailed.source.endswith(" (convex hull)") and iou >= hull_iou + REFIT_GAIN:
+            warn("the outline has detail %d control points cannot follow (fit %.0f px off it); "
+                 "fitted with %d, which cover it better than its convex hull (IoU %.2f against %.2f)",
+                 n_ctrl, err, detail_ctrl, iou, hull_iou)
+            return dataclasses.replace(detailed, source=detailed.source + f" ({detail_ctrl} control points)")
+    # The convex hull is smooth, always fits, and is what a contour of this many control
+    # points can track.
     hull = _resample_polygon(canonical_start(hull), max(8 * n_ctrl, 128), True)
     # strict: without it the refinement folded the curve back along the hull's straight sides
     # (crossing's pedestrian, 30 runs: P@20 0.80 with the folded template, 0.97)
-    log.warning("the outline has detail %d control points cannot follow (fit %.0f px off it); "
-                "using its convex hull (more control points: --n-ctrl)", n_ctrl, err)
+    warn("the outline has detail %d control points cannot follow (fit %.0f px off it); "
+         "using its convex hull (more control points: --n-ctrl)", n_ctrl, err)
     return make(fit(hull, n_ctrl, degree=degree, closed=True, strict=True), " (convex hull)")
 
 
