@@ -80,14 +80,15 @@ def footage_cases(footage: Path, every: int):
 
 
 def template_mask(mask: np.ndarray) -> np.ndarray:
-    """The mask of the template ``draw`` fits to ``mask``'s outline (12 control points, its
-    fallbacks included), rasterised."""
+    """The mask of the template ``draw`` fits to ``mask``'s outline (its default control points:
+    12, or 24 for detail 12 cannot follow; its fallbacks included), rasterised."""
     import logging
 
     from trackcli.shapes.spline import dense_polygon
 
     logging.getLogger("trackcli").setLevel(logging.ERROR)  # the fallbacks' warnings
-    t = draw.fit_template(draw.mask_outline(mask), 12, frame_size=(mask.shape[1], mask.shape[0]))
+    t = draw.fit_template(draw.mask_outline(mask), draw.DEFAULT_CTRL, frame_size=(mask.shape[1], mask.shape[0]),
+                          detail_ctrl=draw.DETAIL_CTRL)
     return draw.polygon_mask(dense_polygon(t.Q, t.basis(), 400), (mask.shape[1], mask.shape[0]))
 
 
@@ -99,7 +100,7 @@ def main() -> None:
     ap.add_argument("--grey", action="store_true",
                     help="segment grey copies of the frames (as monochrome benchmark sequences are)")
     ap.add_argument("--fit", action="store_true",
-                    help="also score the template draw makes of each mask (12 control points), rasterised")
+                    help="also score the template draw makes of each mask (its default control points), rasterised")
     args = ap.parse_args()
     seeds = [int(s) for s in args.seeds.split(",") if s]
     groups: dict[str, list[float]] = {}
