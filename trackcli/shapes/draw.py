@@ -648,6 +648,10 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
     if keeps_extent:
         tries.append((opened, " (thin parts removed, fitted without folds)"))
     hull_iou = polygon_iou(hull, outline)
+
+    def covers(t) -> float:  # how well a fit covers the object: IoU with the outline
+        return polygon_iou(dense_polygon(t.Q, t.basis()), outline)
+
     best = None
     for pts, note in tries:
         t = make(fit(_resample_polygon(pts, max(16 * n_ctrl, 192), True), n_ctrl, degree=degree, closed=True,
@@ -655,7 +659,7 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
         e = fit_error(t, pts)
         if e <= tol and (best is None or e < best[0]):
             best = (e, t)
-    if best is not None and polygon_iou(dense_polygon(best[1].Q, best[1].basis()), outline) >= hull_iou + REFIT_GAIN:
+    if best is not None and covers(best[1]) >= hull_iou + REFIT_GAIN:
         warn("the %d-control-point fit folded on the outline (%.0f px off it); "
              "refitted without folds (%.0f px)", n_ctrl, err, best[0])
         return best[1]
@@ -666,7 +670,7 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
     if detail_ctrl is not None and detail_ctrl > n_ctrl:
         detailed = fit_template(outline, detail_ctrl, degree=degree, closed=True, clip=clip, frame=frame,
                                 frame_size=frame_size, source=source, _quiet=True)
-        iou = polygon_iou(dense_polygon(detailed.Q, detailed.basis()), outline)
+        iou = covers(detailed)
         if not detailed.source.endswith(" (convex hull)") and iou >= hull_iou + REFIT_GAIN:
             warn("the outline has detail %d control points cannot follow (fit %.0f px off it); "
                  "fitted with %d, which cover it better than its convex hull (IoU %.2f against %.2f)",
