@@ -358,6 +358,25 @@ def test_an_object_cut_by_the_box_is_not_taken_out_as_a_leak():
     assert out is None or draw.mask_iou(out, inside) > 0.9
 
 
+def test_a_box_reaching_far_beyond_the_frame_is_cut_a_quarter_of_its_size_beyond_the_edge(caplog):
+    """A huge box (another resolution's coordinates, or "the whole frame" typed as 10000 px)
+    is segmented as the box reaching a quarter of its size inside the frame beyond each edge:
+    the frame padded by 10000 px would not fit in memory."""
+    img, _ = dark_ellipse_image(np.random.default_rng(5))
+    img = np.ascontiguousarray(img[40:160, 40:200])  # 160 x 120: the ellipse and some background
+    h, w = img.shape[:2]
+    with caplog.at_level(logging.WARNING, logger="trackcli.shapes.draw"):
+        mask = draw.segment_box(img, (-10000.0, 0.0, 20000.0, 10000.0))
+    assert f"beyond the {w}x{h} frame by more than a quarter" in caplog.text
+    assert f"segmenting {-w / 4:g},0,{1.5 * w:g},{1.25 * h:g}" in caplog.text
+    assert mask.shape == (h, w)
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="trackcli.shapes.draw"):
+        cut = draw.segment_box(img, (-w / 4, 0.0, 1.5 * w, 1.25 * h))  # a quarter beyond: as given
+    assert "a quarter" not in caplog.text
+    np.testing.assert_array_equal(mask, cut)
+
+
 @pytest.mark.parametrize(
     ("box", "text"),
     [((10.0, 10.0, 0.0, 20.0), "width and height must be positive"),

@@ -172,6 +172,9 @@ SEPARATION_MARGIN = 0.01
 #: :data:`EDGE_PAD` pixels of its edge repeated
 EDGE_TOUCH = 2
 EDGE_PAD = 8
+#: ... and a box reaching farther beyond the frame than this share of its width (height)
+#: inside it is cut there: beyond the edge the frame holds no more than its edge repeated
+BEYOND_SHARE = 0.25
 #: a candidate mask whose bounding rectangle spans less than this share of the box's width or
 #: height is kept only if every candidate does
 BOX_SPAN = 0.7
@@ -273,11 +276,20 @@ def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *
         # the box reaches the frame's edge: GrabCut has no background on that side, and a
         # pocket of background enclosed by the object, the edge and the box's other sides
         # stays in the mask; the frame's edge pixels repeated beyond it (and beyond any part of
-        # the box outside the frame) give it that background
-        p = EDGE_PAD + int(math.ceil(max(0.0, -x, -y, x + w - w_img, y + h - h_img)))
+        # the box outside the frame) give it that background.  Beyond the frame the box is cut
+        # to BEYOND_SHARE of its extent inside (a box in another resolution's coordinates, or
+        # "the whole frame" typed as a huge box, would otherwise pad the frame to gigapixels)
+        reach_x, reach_y = BEYOND_SHARE * (x1 - x0), BEYOND_SHARE * (y1 - y0)
+        bx0, by0 = max(x, x0 - reach_x), max(y, y0 - reach_y)
+        bx1, by1 = min(x + w, x1 + reach_x), min(y + h, y1 + reach_y)
+        if (bx0, by0, bx1, by1) != (x, y, x + w, y + h):
+            log.warning("--box %g,%g,%g,%g: reaches beyond the %dx%d frame by more than a quarter of its size "
+                        "inside it; segmenting %g,%g,%g,%g", x, y, w, h, w_img, h_img, bx0, by0, bx1 - bx0,
+                        by1 - by0)
+        p = EDGE_PAD + int(math.ceil(max(0.0, -bx0, -by0, bx1 - w_img, by1 - h_img)))
         big = cv2.copyMakeBorder(image_bgr, p, p, p, p, cv2.BORDER_REPLICATE)
-        mask, method = _segment(big, (x + p, y + p, w, h), (x0 + p, y0 + p, x1 - x0, y1 - y0), iterations,
-                                progress)
+        mask, method = _segment(big, (bx0 + p, by0 + p, bx1 - bx0, by1 - by0), (x0 + p, y0 + p, x1 - x0, y1 - y0),
+                                iterations, progress)
         mask = np.ascontiguousarray(mask[p:-p, p:-p])
     else:
         mask, method = _segment(image_bgr, box, (x0, y0, x1 - x0, y1 - y0), iterations, progress)
