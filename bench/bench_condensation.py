@@ -17,6 +17,11 @@ normals, then finding the maxima and summing over them) — and the serial part:
 of a step during which no thread is scoring samples (selection, prediction, handing the
 blocks to the threads and collecting them, normalising the weights).  ``/N=1000`` is the cost relative to N = 1000.
 
+With more than one thread count, a second table times the weighting alone
+(``condensation.weigh`` on curves evaluated beforehand: the likelihood of every sample, the
+part of the step the threads share) with each count: the speed-up the threads give where
+nothing is serial.
+
 ``--ceiling`` then runs the one-thread step in two processes at once, each held to its own
 CPU, sharing nothing: the step time each of them gets, and the speed-up two processes give
 over one (four times the one-thread step over the sum of theirs).  That is the most a second
@@ -38,6 +43,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMB
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
+import math  # noqa: E402
 import multiprocessing  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -335,8 +341,48 @@ def main() -> None:
             print(f"{t:>3} {n:>6} {r['median']:>8.2f} {r['mean']:>7.2f} {sel:>8} {r['curves']:>7.2f} "
                   f"{r['likelihood']:>7.2f} {r['serial']:>7.2f} {1e6 * r['median'] / n:>7.0f} {1e3 / r['median']:>6.0f} {ratio:>8} "
                   f"{speed:>8} {r['error']:>7.1f}")
+    if len(thread_counts) > 1:
+        scoring(sizes, thread_counts, args, fimgs, model, score)
     if args.ceiling:
         ceiling(sizes, args, frames, fimgs, model, dyn, score, {n: rows[1, n] for n in sizes if (1, n) in rows})
+
+
+def scoring(sizes, thread_counts, args, fimgs, model, score) -> None:
+    """The weighting alone (``condensation.weigh``: the likelihood of every sample, the part the
+    threads share) on curves evaluated beforehand: its speed-up is what the threads give
+    where nothing of the step is serial."""
+    rng = np.random.default_rng(0)
+    best: dict[tuple[int, int], float] = {}
+    for n in sizes:
+        curves_of = []
+        for k in range(len(fimgs)):
+            x = np.zeros((n, 6))
+            x[:, :2] = TRUTH[k] - (320, 240) + rng.normal(0, 10, (n, 2))
+            curves_of.append(model.evaluate(x))
+        index = np.arange(n, dtype=float)[:, None]  # weigh hands out blocks of these
+        for _ in range(args.repeat):
+            for t in thread_counts:
+                times = []
+                for k, (pts, nrm) in enumerate(curves_of):
+                    def loglik(block: np.ndarray, pts=pts, nrm=nrm, k=k) -> np.ndarray:
+                        i0, i1 = int(block[0, 0]), int(block[-1, 0]) + 1
+                        if score is not None:
+                            return score(k, pts[i0:i1], nrm[i0:i1])
+                        return measure.log_likelihood(fimgs[k], pts[i0:i1], nrm[i0:i1], h=15.0, sigma=3.0,
+                                                      alpha=0.02, threshold=8.0)
+                    t0 = time.perf_counter()
+                    condensation.weigh(index, loglik, threads=t)
+                    times.append(time.perf_counter() - t0)
+                med = 1e3 * float(np.median(times))
+                best[t, n] = min(best.get((t, n), math.inf), med)
+    print(f"\nthe weighting alone, curves evaluated beforehand (load average {os.getloadavg()[0]:.2f}):")
+    header = f"{'thr':>3} {'N':>6} {'weigh ms':>9} {'ns/smp':>7} {'speed-up':>9}"
+    print(header)
+    print("-" * len(header))
+    for t in thread_counts:
+        for n in sizes:
+            print(f"{t:>3} {n:>6} {best[t, n]:>9.2f} {1e6 * best[t, n] / n:>7.0f} "
+                  f"{best[thread_counts[0], n] / best[t, n]:>9.2f}")
 
 
 def _paired(cpu, barrier, results, sizes, args, frames, fimgs, model, dyn, score) -> None:
