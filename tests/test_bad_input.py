@@ -179,6 +179,8 @@ CASES = [
     ("draw-ellipse-outside", ["draw", IN + "clip.avi", "--ellipse", "900,900,20,20", "-o", "t.yaml"], 3, "--ellipse"),
     ("draw-points-outside", ["draw", IN + "clip.avi", "--points", "-90,-90 -50,-90 -70,-50", "-o", "t.yaml"], 3,
      "--points"),
+    ("draw-points-on-a-line", ["draw", IN + "clip.avi", "--points", "10,10 30,30 50,50", "-o", "t.yaml"], 3,
+     "encloses almost no area"),
     ("draw-points-file-garbage", ["draw", IN + "clip.avi", "--points", IN + "points.txt", "-o", "t.yaml"], 4,
      "points.txt line 2"),
     ("draw-mask-missing", ["draw", IN + "clip.avi", "--mask", IN + "absent.png", "-o", "t.yaml"], 4, "absent.png"),

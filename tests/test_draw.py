@@ -377,6 +377,23 @@ def test_a_box_reaching_far_beyond_the_frame_is_cut_a_quarter_of_its_size_beyond
     np.testing.assert_array_equal(mask, cut)
 
 
+def test_a_closed_outline_must_enclose_an_area_but_may_be_thin():
+    """Points on a line (or a path that doubles back on itself) enclose no area and are refused;
+    a pen seen at 45 degrees, 100 x 5 px, is an outline."""
+    with pytest.raises(ConfigError, match="encloses almost no area"):
+        draw.check_outline_in_frame(np.array([[10.0, 10.0], [30.0, 30.0], [50.0, 50.0]]), (160, 120), "--points")
+    with pytest.raises(ConfigError, match="encloses almost no area"):  # out and back along the same path
+        draw.check_outline_in_frame(np.array([[10.0, 10.0], [60.0, 40.0], [10.3, 10.0], [60.0, 40.3]]),
+                                    (160, 120), "--points")
+    a = np.deg2rad(45.0)
+    u, v = np.array([np.cos(a), np.sin(a)]), np.array([-np.sin(a), np.cos(a)])
+    pen = np.array([80.0, 60.0]) + np.array([s * 50.0 * u + t * 2.5 * v for s, t in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+    draw.check_outline_in_frame(pen, (160, 120), "--points")
+    # an open curve is a line by design
+    draw.check_outline_in_frame(np.array([[10.0, 10.0], [30.0, 30.0], [50.0, 50.0]]), (160, 120), "--points",
+                                closed=False)
+
+
 @pytest.mark.parametrize(
     ("box", "text"),
     [((10.0, 10.0, 0.0, 20.0), "width and height must be positive"),

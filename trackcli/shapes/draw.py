@@ -91,6 +91,8 @@ def parse_points(spec: str) -> np.ndarray:
 
 #: Smallest width and height (px) of the part of an outline inside the frame, and of a frame.
 MIN_OUTLINE_SIDE = 8
+#: a closed outline's least mean width, px (area over half its perimeter)
+MIN_OUTLINE_WIDTH = 1.0
 
 
 def check_frame_size(frame_size: tuple[int, int], clip: str) -> None:
@@ -107,7 +109,9 @@ def check_outline_in_frame(outline: np.ndarray, frame_size: tuple[int, int], wha
 
     The rule is the one ``--box`` follows: the outline's bounding box, cut to the frame
     ``(w, h)``, must be at least :data:`MIN_OUTLINE_SIDE` px wide and high (an open curve:
-    wide or high).
+    wide or high).  A closed outline must also enclose an area: its mean width (area over
+    half the perimeter) at least :data:`MIN_OUTLINE_WIDTH` px, which points on a line, or a
+    path that doubles back on itself, do not have.
     """
     w, h = frame_size
     pts = np.asarray(outline, dtype=float)
@@ -116,6 +120,13 @@ def check_outline_in_frame(outline: np.ndarray, frame_size: tuple[int, int], wha
     if (size.min() if closed else size.max()) < MIN_OUTLINE_SIDE:
         raise ConfigError(f"{what}: the outline spans only {size[0]:.3g}x{size[1]:.3g} px (at least "
                           f"{MIN_OUTLINE_SIDE} px {'each way' if closed else 'one way'})")
+    if closed:
+        x, y = pts[:, 0] - lo[0], pts[:, 1] - lo[1]
+        area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+        half_perimeter = 0.5 * float(np.hypot(*(np.roll(pts, -1, axis=0) - pts).T).sum())
+        if area < MIN_OUTLINE_WIDTH * half_perimeter:
+            raise ConfigError(f"{what}: the outline encloses almost no area ({area:.3g} px²; its points lie on "
+                              "a line, or the path doubles back on itself): give points in order around the object")
     inside = np.minimum(hi, [w - 1.0, h - 1.0]) - np.maximum(lo, 0.0)
     if inside.min() < 0 or (inside.min() if closed else inside.max()) < MIN_OUTLINE_SIDE:
         raise ConfigError(f"{what}: the outline lies (almost) outside the {w}x{h} frame "
