@@ -166,6 +166,14 @@ def test_error_on_file_prefixes_the_file_then_the_key_path(tmp_path):
     assert str(info.value) == f"{p}: measurement.n_normals: expected an integer in [3, 1000], got 'abc'"
 
 
+@pytest.mark.parametrize("kind", ["trackcli-template", "trackcli-model"])
+def test_a_template_or_model_given_as_configuration_is_named_as_such(tmp_path, kind):
+    p = tmp_path / "t.yaml"
+    p.write_text(f"format: 1\nkind: {kind}\nclosed: true\n")
+    with pytest.raises(ConfigError, match=f"a {kind[9:]} file \\(kind: {kind}\\), not a configuration"):
+        load_settings(p)
+
+
 def test_config_error_is_also_a_value_error():
     with pytest.raises(ValueError):
         settings_from_dict({"seed": -3})

@@ -399,6 +399,10 @@ def load_settings(path: str | Path | None = None, overrides: Mapping[str, Any] |
     data: dict[str, Any] = {}
     if path is not None:
         data = read_yaml(path)
+        kind = data.get("kind") if isinstance(data, dict) else None
+        if isinstance(kind, str) and kind.startswith("trackcli-"):  # a template or a model given for settings
+            raise ConfigError(f"{path}: a {kind[len('trackcli-'):]} file (kind: {kind}), not a configuration; "
+                              "a configuration holds settings (see 'trackcli config show')")
     try:
         return _build(Settings, _merge(_deep_copy(data), overrides or {}), "")
     except ConfigError as exc:
