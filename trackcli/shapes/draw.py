@@ -293,13 +293,14 @@ def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *
         reach_x, reach_y = BEYOND_SHARE * (x1 - x0), BEYOND_SHARE * (y1 - y0)
         bx0, by0 = max(x, x0 - reach_x), max(y, y0 - reach_y)
         bx1, by1 = min(x + w, x1 + reach_x), min(y + h, y1 + reach_y)
+        seg = (x, y, w, h)  # as given unless cut (to the bit: the same mask as before the cut existed)
         if (bx0, by0, bx1, by1) != (x, y, x + w, y + h):
+            seg = (bx0, by0, bx1 - bx0, by1 - by0)
             log.warning("--box %g,%g,%g,%g: reaches beyond the %dx%d frame by more than a quarter of its size "
-                        "inside it; segmenting %g,%g,%g,%g", x, y, w, h, w_img, h_img, bx0, by0, bx1 - bx0,
-                        by1 - by0)
-        p = EDGE_PAD + int(math.ceil(max(0.0, -bx0, -by0, bx1 - w_img, by1 - h_img)))
+                        "inside it; segmenting %g,%g,%g,%g", x, y, w, h, w_img, h_img, *seg)
+        p = EDGE_PAD + int(math.ceil(max(0.0, -seg[0], -seg[1], seg[0] + seg[2] - w_img, seg[1] + seg[3] - h_img)))
         big = cv2.copyMakeBorder(image_bgr, p, p, p, p, cv2.BORDER_REPLICATE)
-        mask, method = _segment(big, (bx0 + p, by0 + p, bx1 - bx0, by1 - by0), (x0 + p, y0 + p, x1 - x0, y1 - y0),
+        mask, method = _segment(big, (seg[0] + p, seg[1] + p, seg[2], seg[3]), (x0 + p, y0 + p, x1 - x0, y1 - y0),
                                 iterations, progress)
         mask = np.ascontiguousarray(mask[p:-p, p:-p])
     else:
