@@ -223,6 +223,13 @@ def discriminant_model(frames, fimgs, model):
     return score, t_ev
 
 
+def likelihood(score, fimgs, k: int, pts: np.ndarray, nrm: np.ndarray) -> np.ndarray:
+    """The log-likelihood of curves on frame ``k``: the discriminant's ``score``, or AC eq 12.2 without one."""
+    if score is not None:
+        return score(k, pts, nrm)
+    return measure.log_likelihood(fimgs[k], pts, nrm, h=15.0, sigma=3.0, alpha=0.02, threshold=8.0)
+
+
 def run(n: int, frames, fimgs, model, dyn, n_frames: int, normals: int, seed: int, threads: int = 1,
         score=None) -> dict[str, float]:
     rng = np.random.default_rng(seed)
@@ -232,10 +239,7 @@ def run(n: int, frames, fimgs, model, dyn, n_frames: int, normals: int, seed: in
         t0 = time.perf_counter()
         pts, nrm = model.evaluate(x)
         t1 = time.perf_counter()
-        if score is not None:
-            ll = score(state["k"], pts, nrm)
-        else:
-            ll = measure.log_likelihood(fimgs[state["k"]], pts, nrm, h=15.0, sigma=3.0, alpha=0.02, threshold=8.0)
+        ll = likelihood(score, fimgs, state["k"], pts, nrm)
         t2 = time.perf_counter()
         spent["curves"] += t1 - t0
         spent["likelihood"] += t2 - t1
@@ -366,10 +370,7 @@ def scoring(sizes, thread_counts, args, fimgs, model, score) -> None:
                 for k, (pts, nrm) in enumerate(curves_of):
                     def loglik(block: np.ndarray, pts=pts, nrm=nrm, k=k) -> np.ndarray:
                         i0, i1 = int(block[0, 0]), int(block[-1, 0]) + 1
-                        if score is not None:
-                            return score(k, pts[i0:i1], nrm[i0:i1])
-                        return measure.log_likelihood(fimgs[k], pts[i0:i1], nrm[i0:i1], h=15.0, sigma=3.0,
-                                                      alpha=0.02, threshold=8.0)
+                        return likelihood(score, fimgs, k, pts[i0:i1], nrm[i0:i1])
                     t0 = time.perf_counter()
                     condensation.weigh(index, loglik, threads=t)
                     times.append(time.perf_counter() - t0)

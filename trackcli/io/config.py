@@ -399,7 +399,7 @@ def load_settings(path: str | Path | None = None, overrides: Mapping[str, Any] |
     data: dict[str, Any] = {}
     if path is not None:
         data = read_yaml(path)
-        kind = data.get("kind") if isinstance(data, dict) else None
+        kind = data.get("kind")  # read_yaml gives a mapping
         if isinstance(kind, str) and kind.startswith("trackcli-"):  # a template or a model given for settings
             raise ConfigError(f"{path}: a {kind[len('trackcli-'):]} file (kind: {kind}), not a configuration; "
                               "a configuration holds settings (see 'trackcli config show')")

@@ -121,11 +121,12 @@ def check_outline_in_frame(outline: np.ndarray, frame_size: tuple[int, int], wha
         raise ConfigError(f"{what}: the outline spans only {size[0]:.3g}x{size[1]:.3g} px (at least "
                           f"{MIN_OUTLINE_SIDE} px {'each way' if closed else 'one way'})")
     if closed:
-        x, y = pts[:, 0] - lo[0], pts[:, 1] - lo[1]
-        area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+        from trackcli.shapes.spline import polygon_area_centroid
+
+        area = abs(float(polygon_area_centroid(pts)[0]))
         half_perimeter = 0.5 * float(np.hypot(*(np.roll(pts, -1, axis=0) - pts).T).sum())
         if area < MIN_OUTLINE_WIDTH * half_perimeter:
-            raise ConfigError(f"{what}: the outline encloses almost no area ({area:.3g} px²; its points lie on "
+            raise ConfigError(f"{what}: the outline encloses almost no area ({area:.1f} px²; its points lie on "
                               "a line, or the path doubles back on itself): give points in order around the object")
     inside = np.minimum(hi, [w - 1.0, h - 1.0]) - np.maximum(lo, 0.0)
     if inside.min() < 0 or (inside.min() if closed else inside.max()) < MIN_OUTLINE_SIDE:
