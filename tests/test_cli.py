@@ -461,6 +461,10 @@ def test_render_refuses_to_write_over_its_inputs(tmp_path, ellipse_clip, tracked
         assert "would overwrite the input" in line
     assert "ending in .png" in usage_error(run(["render", tracked, ellipse_clip, "--sheet", "2", "-o",
                                                 tmp_path / "sheet.mp4"], 2))
+    for name in ("overlay.txt", "overlay", "overlay.png"):  # not a video's ending: said before any work
+        line = usage_error(run(["render", tracked, ellipse_clip, "-o", tmp_path / name], 2))
+        assert f"not {name!r}" in line and ".mp4" in line
+        assert not (tmp_path / name).exists()
     assert {p: p.read_bytes() for p in before} == before
 
 

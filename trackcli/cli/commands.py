@@ -1156,10 +1156,14 @@ def _refuse_rendering_over_inputs(out: Path, kind: str, *, track: str, clip: str
     from trackcli.errors import ConfigError
     from trackcli.io.outputs import refuse_overwriting_inputs
     from trackcli.io.video import IMAGE_SUFFIXES
+    from trackcli.run.render import VIDEO_SUFFIXES
 
     refuse_overwriting_inputs({"-o/--output": out}, {"TRACK": track, "CLIP": clip, "--truth": truth})
     if kind == "sheet" and out.suffix.lower() != ".png":
         raise click.UsageError(f"--sheet writes a PNG image; give an output name ending in .png, not {out.name!r}")
+    if kind == "video" and out.suffix.lower() not in VIDEO_SUFFIXES and not out.is_dir():
+        raise click.UsageError(f"a video's name ends in {', '.join(VIDEO_SUFFIXES[:-1])} or {VIDEO_SUFFIXES[-1]}, "
+                               f"not {out.name!r} (--png writes a folder of frames, --sheet N one PNG image)")
     folder = Path(clip)
     if not folder.is_dir():
         return

@@ -44,6 +44,8 @@ TEXT_BGR = (255, 255, 255)
 
 #: Codecs tried, in order, for the MP4 (OpenCV fourcc).  VP9 is small and plays in browsers.
 VIDEO_CODECS = ("vp09", "mp4v")
+#: the endings of a video output this OpenCV writes (with VIDEO_CODECS, or AVI_CODECS for .avi)
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mkv", ".mov", ".webm", ".m4v")
 #: the codecs tried for an ``.avi`` output (an AVI holds no VP9: OpenCV would print its fallback)
 AVI_CODECS = ("MJPG", "XVID")
 
