@@ -34,6 +34,9 @@ $T render "$OUT/test.condensation.csv" sample_data/test.mp4 --sheet 8 --tile-wid
     --truth sample_data/test.truth.csv -o "$OUT/test.condensation.sheet.png"
 
 echo "== 5/5 multi-modal: three similar heads; the translation histogram keeps a peak at each"
+echo "   (the template comes from the training clip and the samples start spread over the whole frame;"
+echo "   the estimate, their weighted mean, lies between the people: the warning about the template"
+echo "   on frame 0 and the frames reported lost are expected here)"
 $T track -c configs/three-heads.yaml --template "$OUT/head.yaml" sample_data/three_heads.mp4 -o "$OUT" --seed 0
 
 echo
