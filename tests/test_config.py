@@ -174,6 +174,26 @@ def test_a_template_or_model_given_as_configuration_is_named_as_such(tmp_path, k
         load_settings(p)
 
 
+def test_a_model_given_as_template_and_a_template_as_model_are_named_as_such(tmp_path):
+    """The message says which file it is; a file of no kind (a configuration, a truth CSV) is
+    said not to be a template, with the command that writes one."""
+    from trackcli.dynamics.model import load_model
+    from trackcli.errors import ModelError, TemplateError
+    from trackcli.shapes.template import load_template
+
+    model, template, other = tmp_path / "m.yaml", tmp_path / "t.yaml", tmp_path / "c.yaml"
+    model.write_text("format: 1\nkind: trackcli-model\n")
+    template.write_text("format: 1\nkind: trackcli-template\nclosed: true\n")
+    other.write_text("condensation:\n  n_samples: 300\n")
+    with pytest.raises(TemplateError, match=r"a model file \(kind: trackcli-model\), not a template"):
+        load_template(model)
+    with pytest.raises(ModelError, match=r"a template file \(kind: trackcli-template\), not a model"):
+        load_model(template)
+    for p in (other, CONFIGS / "default.yaml"):
+        with pytest.raises(TemplateError, match="not a trackcli template .*'trackcli draw'"):
+            load_template(p)
+
+
 def test_config_error_is_also_a_value_error():
     with pytest.raises(ValueError):
         settings_from_dict({"seed": -3})

@@ -141,15 +141,19 @@ def test_binary_file(tmp_path):
 def test_not_a_mapping(tmp_path, text):
     p = tmp_path / "t.yaml"
     p.write_text(text, encoding="utf-8")
-    with pytest.raises(TemplateError, match="expected a mapping"):
+    with pytest.raises(TemplateError, match="not a trackcli template \\(a YAML file written by 'trackcli draw'\\)"):
         load_template(p)
 
 
-@pytest.mark.parametrize("kind", ["trackcli-model", None, "Trackcli-Template"])
-def test_wrong_kind(tmp_path, kind):
+@pytest.mark.parametrize("kind, text", [
+    ("trackcli-model", r"a model file \(kind: trackcli-model\), not a template"),
+    (None, r"not a trackcli template \(a YAML file written by 'trackcli draw'\)"),
+    ("Trackcli-Template", r"not a trackcli template \(kind: 'Trackcli-Template', expected 'trackcli-template'\)"),
+])
+def test_wrong_kind(tmp_path, kind, text):
     d = good_dict()
     d["kind"] = kind
-    with pytest.raises(TemplateError, match=r"not a trackcli template \(kind: .*expected 'trackcli-template'\)"):
+    with pytest.raises(TemplateError, match=text):
         load_template(write_yaml(tmp_path, d))
 
 

@@ -71,7 +71,11 @@ def load_model(path: str | Path) -> Model:
     """Read and validate a model file; errors name the file and the key."""
     p = Path(path)
     d = read_yaml_file(p, "model", ModelError)
-    if not isinstance(d, dict) or d.get("kind") != KIND:
+    kind = d.get("kind") if isinstance(d, dict) else None
+    if isinstance(kind, str) and kind.startswith("trackcli-") and kind != KIND:
+        raise ModelError(f"{p}: a {kind[len('trackcli-'):]} file (kind: {kind}), not a model "
+                         "(a YAML file written by 'trackcli learn')")
+    if kind != KIND:
         raise ModelError(f"{p}: not a trackcli model file (expected kind: {KIND})")
     if d.get("format") != FORMAT:
         raise ModelError(f"{p}: unsupported model format {d.get('format')!r} (this version reads {FORMAT})")
