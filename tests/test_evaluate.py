@@ -403,6 +403,7 @@ def test_malformed_box_files(tmp_path, text, pattern):
         ("frame,cx,cy,bbox_x,bbox_y,bbox_w,bbox_h\n0,1,2,3,4,-5,6\n", r"line 2: bbox_w and bbox_h must be >= 0"),
         ("frame,cx,cy,bbox_x,bbox_y,bbox_w,bbox_h\n", r"header but no rows"),
         ("", r"empty predictions file"),
+        ("format: 1\nkind: trackcli-template\n", r"not a predictions CSV \(its first line, 'format: 1', reads like YAML"),
     ],
 )
 def test_malformed_predictions(tmp_path, text, pattern):

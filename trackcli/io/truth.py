@@ -253,6 +253,9 @@ def _csv_table(path: Path, text: str, required: tuple[str, ...], what: str):
     if header is None:
         raise InputError(f"{path}: empty {what} file (expected a CSV header)")
     missing = [c for c in required if c not in header]
+    if missing and len(header) == 1 and ":" in header[0]:
+        raise InputError(f"{path}: not a {what} CSV (its first line, {header[0]!r}, reads like YAML: a template, "
+                         "model or configuration?)")
     if missing:
         raise InputError(
             f"{path}: {what} file lacks column{'s' if len(missing) > 1 else ''} "
