@@ -379,6 +379,8 @@ def test_end_to_end_files(tmp_path):
         ("1,2,inf,4\n", r"line 1: w must be finite or NaN"),
         ("", r"empty truth file"),
         ("\n\n", r"empty truth file"),
+        ("format: 1\nkind: trackcli-template\n", r"truth\.txt: not a truth file \(its first line, 'format: 1', reads like YAML"),
+        ("seed: 3\n", r"not a truth file .*reads like YAML"),
     ],
 )
 def test_malformed_box_files(tmp_path, text, pattern):

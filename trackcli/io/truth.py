@@ -491,4 +491,7 @@ def load_truth(path: PathLike, *, object_id: int = 0) -> GroundTruth:
     header_cells = [cell.strip().lower() for cell in first.split(",")]
     if "frame" in header_cells:
         return _load_truth_csv(path, text, int(object_id))
+    if re.match(r"\s*[A-Za-z_][\w.-]*\s*:(\s|$)", first):
+        raise InputError(f"{path}: not a truth file (its first line, {first.strip()!r}, reads like YAML: a template, "
+                         "model or configuration?)")
     return _load_box_file(path, text)
