@@ -9,7 +9,7 @@ from click.testing import CliRunner
 
 from conftest import CLIP_FRAMES, CLIP_SIZE
 from trackcli.cli import cli
-from trackcli.run.render import ESTIMATE_BGR, default_output, render, sheet_indices
+from trackcli.run.render import ESTIMATE_BGR, SUFFIX_CODECS, VIDEO_SUFFIXES, default_output, render, sheet_indices
 from trackcli.io.tracks import read_outlines
 
 
@@ -94,6 +94,16 @@ def test_video_has_one_frame_per_selected_frame_and_default_name(tmp_path, track
     frames = clip_frames(out)
     assert len(frames) == 2 and frames[0].shape == (CLIP_SIZE[1], CLIP_SIZE[0], 3)
     assert not list(out.parent.glob(".*part*"))
+
+
+@pytest.mark.parametrize("suffix", VIDEO_SUFFIXES)
+def test_every_video_ending_offered_is_written_and_reads_back(tmp_path, tracked, ellipse_clip, suffix):
+    """The endings render accepts each get a codec this OpenCV writes in that container."""
+    out = tmp_path / f"overlay{suffix}"
+    result = run(["render", tracked, ellipse_clip, "--end", "2", "-o", out], 0)
+    assert f"video ({SUFFIX_CODECS[suffix][0]})" in result.stdout
+    frames = clip_frames(out)
+    assert len(frames) == 2 and frames[0].shape == (CLIP_SIZE[1], CLIP_SIZE[0], 3)  # --end is exclusive
 
 
 def test_contact_sheet(tmp_path, tracked, ellipse_clip):

@@ -44,10 +44,15 @@ TEXT_BGR = (255, 255, 255)
 
 #: Codecs tried, in order, for the MP4 (OpenCV fourcc).  VP9 is small and plays in browsers.
 VIDEO_CODECS = ("vp09", "mp4v")
-#: the endings of a video output this OpenCV writes (with VIDEO_CODECS, or AVI_CODECS for .avi)
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mkv", ".mov", ".webm", ".m4v")
 #: the codecs tried for an ``.avi`` output (an AVI holds no VP9: OpenCV would print its fallback)
 AVI_CODECS = ("MJPG", "XVID")
+#: the codecs tried for each ending of a video output, in order (OpenCV's FFmpeg names VP9 "VP90"
+#: in Matroska and WebM and "vp09" in MP4, and prints a fallback line for the other name; a
+#: QuickTime or M4V file holds no VP9 here)
+SUFFIX_CODECS = {".mp4": VIDEO_CODECS, ".avi": AVI_CODECS, ".mkv": ("VP90", "mp4v"), ".webm": ("VP90",),
+                 ".mov": ("mp4v",), ".m4v": ("mp4v",)}
+#: the endings of a video output this OpenCV writes
+VIDEO_SUFFIXES = tuple(SUFFIX_CODECS)
 
 
 @dataclass(frozen=True)
@@ -224,7 +229,7 @@ class _VideoOut:
         except OSError as exc:
             raise InputError(f"{path}: cannot write ({exc.strerror or exc})") from None
         self.codec = None
-        codecs = AVI_CODECS if path.suffix.lower() == ".avi" else VIDEO_CODECS
+        codecs = SUFFIX_CODECS.get(path.suffix.lower(), VIDEO_CODECS)
         for code in codecs:
             writer = cv2.VideoWriter(str(self.tmp), cv2.VideoWriter_fourcc(*code), fps, size)
             if writer.isOpened():
