@@ -317,7 +317,8 @@ def test_top_level_must_be_a_mapping(tmp_path, text):
 def test_binary_file_is_a_config_error(tmp_path):
     p = tmp_path / "bin.yaml"
     p.write_bytes(b"\xff\xfe\x00\x01")
-    with pytest.raises(ConfigError, match="cannot read"):
+    with pytest.raises(ConfigError, match=r"cannot read configuration file \(not a text file: configuration files are "
+                                          r"UTF-8 YAML\)"):
         load_settings(p)
 
 

@@ -142,6 +142,8 @@ def test_render_errors_are_one_line(tmp_path, tracked, ellipse_clip):
     run(["render", tracked, ellipse_clip, "--sheet", "3", "--png"], 2)
     err = run(["render", tracked, tmp_path / "missing.mp4"], 4)
     assert "missing.mp4" in err.stderr
+    err = run(["render", ellipse_clip, ellipse_clip], 4)  # the clip given as the track
+    assert err.stderr.strip() == f"Error: {ellipse_clip}: not a text file (a track is the CSV written by 'trackcli track')"
     one = run(["render", tracked, ellipse_clip, "--start", "5", "--end", "6", "-o", tmp_path / "one.mp4"], 0)
     assert "of 1 frames, 1 with an estimate" in one.stdout
     late = tracked.with_name("late.csv")

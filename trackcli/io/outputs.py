@@ -277,8 +277,10 @@ def read_yaml_file(path: str | Path, what: str, error: type[Exception], invalid:
             raise (invalid or error)(f"{p}: too large for a {what} file ({size / 2**20:.1f} MiB; at most "
                         f"{MAX_YAML_BYTES // 2**20} MiB)")
         text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError:
+        raise error(f"{p}: cannot read {what} file (not a text file: {what} files are UTF-8 YAML)") from None
+    except OSError as exc:
         if isinstance(exc, TrackcliError):
             raise
-        raise error(f"{p}: cannot read {what} file ({getattr(exc, 'strerror', None) or exc})") from None
+        raise error(f"{p}: cannot read {what} file ({exc.strerror or exc})") from None
     return load_yaml_text(text, str(p), invalid or error)

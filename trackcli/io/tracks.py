@@ -282,8 +282,10 @@ def _read_table(path: str | Path) -> tuple[Path, list[list[str]]]:
     try:
         with open(p, newline="", encoding="utf-8") as fh:
             rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{p}: cannot read ({exc})") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{p}: not a text file (a track is the CSV written by 'trackcli track')") from None
+    except OSError as exc:
+        raise InputError(f"{p}: cannot read ({exc.strerror or exc})") from None
     if not rows or "frame" not in rows[0]:
         raise InputError(f"{p}: not a trackcli track CSV (no 'frame' column in the header)")
     return p, rows
