@@ -31,7 +31,7 @@ import yaml
 from trackcli.io.config import Settings, replace, settings_from_dict, to_dict
 from trackcli.dynamics.ar2 import AR2
 from trackcli.errors import ConfigError, ModelError, TrackcliError
-from trackcli.io.outputs import read_yaml_file, write_text
+from trackcli.io.outputs import other_kind, read_yaml_file, write_text
 from trackcli.shapes.shape_space import ShapeSpace
 from trackcli.shapes.template import Template
 
@@ -71,11 +71,10 @@ def load_model(path: str | Path) -> Model:
     """Read and validate a model file; errors name the file and the key."""
     p = Path(path)
     d = read_yaml_file(p, "model", ModelError)
-    kind = d.get("kind") if isinstance(d, dict) else None
-    if isinstance(kind, str) and kind.startswith("trackcli-") and kind != KIND:
-        raise ModelError(f"{p}: a {kind[len('trackcli-'):]} file (kind: {kind}), not a model "
-                         "(a YAML file written by 'trackcli learn')")
-    if kind != KIND:
+    other = other_kind(d, KIND)
+    if other:
+        raise ModelError(f"{p}: {other}, not a model (a YAML file written by 'trackcli learn')")
+    if not isinstance(d, dict) or d.get("kind") != KIND:
         raise ModelError(f"{p}: not a trackcli model file (expected kind: {KIND})")
     if d.get("format") != FORMAT:
         raise ModelError(f"{p}: unsupported model format {d.get('format')!r} (this version reads {FORMAT})")

@@ -398,11 +398,13 @@ def load_settings(path: str | Path | None = None, overrides: Mapping[str, Any] |
     """Defaults, then the file at ``path`` (if any), then ``overrides`` (dotted keys)."""
     data: dict[str, Any] = {}
     if path is not None:
+        from trackcli.io.outputs import other_kind
+
         data = read_yaml(path)
-        kind = data.get("kind")  # read_yaml gives a mapping
-        if isinstance(kind, str) and kind.startswith("trackcli-"):  # a template or a model given for settings
-            raise ConfigError(f"{path}: a {kind[len('trackcli-'):]} file (kind: {kind}), not a configuration; "
-                              "a configuration holds settings (see 'trackcli config show')")
+        other = other_kind(data)  # a template or a model given for settings
+        if other:
+            raise ConfigError(f"{path}: {other}, not a configuration; a configuration holds settings "
+                              "(see 'trackcli config show')")
     try:
         return _build(Settings, _merge(_deep_copy(data), overrides or {}), "")
     except ConfigError as exc:

@@ -259,6 +259,16 @@ def _check_yaml_size(root: Any, where: str, error: type[Exception]) -> None:
                 stack.append((c, False))
 
 
+def other_kind(data: Any, expected: str | None = None) -> str | None:
+    """``"a model file (kind: trackcli-model)"`` when ``data`` (a parsed YAML file) is a trackcli
+    file of another kind than ``expected``, for the message that names a file given in the
+    wrong place (a model as a template, a template as a configuration); else None."""
+    kind = data.get("kind") if isinstance(data, dict) else None
+    if isinstance(kind, str) and kind.startswith("trackcli-") and kind != expected:
+        return f"a {kind[len('trackcli-'):]} file (kind: {kind})"
+    return None
+
+
 def read_yaml_file(path: str | Path, what: str, error: type[Exception], invalid: type[Exception] | None = None):
     """Parse the YAML file ``path`` (a ``what`` file, for messages), raising ``error`` with one line.
 

@@ -239,6 +239,18 @@ def _flag(token: str, where: str, column: str) -> bool:
     raise InputError(f"{where}: {column} must be 0 or 1, got {token!r}")
 
 
+#: a first line ``key: value`` (or ``key:``): a YAML file given where a table was expected
+_YAML_LINE = re.compile(r"\s*[A-Za-z_][\w.-]*\s*:(\s|$)")
+
+
+def _refuse_yaml(path: Path, first_line: str, what: str) -> None:
+    """A one-line error when the file's first line reads like YAML (a template, model or
+    configuration given in the place of a table)."""
+    if _YAML_LINE.match(first_line):
+        raise InputError(f"{path}: not a {what} (its first line, {first_line.strip()!r}, reads like YAML: a "
+                         "template, model or configuration?)")
+
+
 def _csv_table(path: Path, text: str, required: tuple[str, ...], what: str):
     """Header and rows of a CSV file, checking that the required columns are present.
 
@@ -253,10 +265,8 @@ def _csv_table(path: Path, text: str, required: tuple[str, ...], what: str):
     if header is None:
         raise InputError(f"{path}: empty {what} file (expected a CSV header)")
     missing = [c for c in required if c not in header]
-    if missing and len(header) == 1 and ":" in header[0]:
-        raise InputError(f"{path}: not a {what} CSV (its first line, {header[0]!r}, reads like YAML: a template, "
-                         "model or configuration?)")
     if missing:
+        _refuse_yaml(path, ",".join(header), f"{what} CSV")
         raise InputError(
             f"{path}: {what} file lacks column{'s' if len(missing) > 1 else ''} "
             f"{', '.join(missing)} (needs {', '.join(required)}; has {', '.join(header) or 'none'})"
@@ -491,7 +501,5 @@ def load_truth(path: PathLike, *, object_id: int = 0) -> GroundTruth:
     header_cells = [cell.strip().lower() for cell in first.split(",")]
     if "frame" in header_cells:
         return _load_truth_csv(path, text, int(object_id))
-    if re.match(r"\s*[A-Za-z_][\w.-]*\s*:(\s|$)", first):
-        raise InputError(f"{path}: not a truth file (its first line, {first.strip()!r}, reads like YAML: a template, "
-                         "model or configuration?)")
+    _refuse_yaml(path, first, "truth file")
     return _load_box_file(path, text)

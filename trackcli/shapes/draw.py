@@ -616,29 +616,32 @@ def _prune(image_bgr: np.ndarray, mask: np.ndarray, box: tuple[float, float, flo
     """
     import cv2
 
-    inside = mask > 0
+    # everything happens within the window GrabCut runs on (the mask lies in the box, and the
+    # colours' window, a quarter of the box around it, lies within it too)
+    ys, xs = _near_box(mask.shape, box, PRUNE_WINDOW)
+    oy, ox = ys.start, xs.start
+    inside = mask[ys, xs] > 0
     dist = cv2.distanceTransform(inside.astype(np.uint8), cv2.DIST_L2, 5)
     core = dist >= PRUNE_CORE * float(dist.max())
     shift = 8 - int(round(math.log2(PRUNE_BINS)))
-    q = (image_bgr >> shift).astype(np.int32)
+    q = (image_bgr[ys, xs] >> shift).astype(np.int32)
     colour = (q[..., 0] * PRUNE_BINS + q[..., 1]) * PRUNE_BINS + q[..., 2]
-    window = _near_box(mask.shape, box, 0.25)
-    near, near_in, near_core = colour[window], inside[window], core[window]
+    ny, nx = _near_box(mask.shape, box, 0.25)
+    near = slice(ny.start - oy, ny.stop - oy), slice(nx.start - ox, nx.stop - ox)
+    near_colour, near_in, near_core = colour[near], inside[near], core[near]
     n_bins = PRUNE_BINS ** 3
-    in_core = np.bincount(near[near_core], minlength=n_bins) / max(1, int(near_core.sum()))
-    outside = np.bincount(near[~near_in], minlength=n_bins) / max(1, int((~near_in).sum()))
+    in_core = np.bincount(near_colour[near_core], minlength=n_bins) / max(1, int(near_core.sum()))
+    outside = np.bincount(near_colour[~near_in], minlength=n_bins) / max(1, int((~near_in).sum()))
     prune = inside & ~core & (outside > in_core)[colour]
     if not prune.any():
         return None
-    h_img, w_img = mask.shape
     x0, y0, w, h = rect
-    labels = np.full((h_img, w_img), cv2.GC_BGD, np.uint8)
-    labels[y0:y0 + h, x0:x0 + w] = cv2.GC_PR_BGD
+    labels = np.full(inside.shape, cv2.GC_BGD, np.uint8)
+    labels[y0 - oy:y0 - oy + h, x0 - ox:x0 - ox + w] = cv2.GC_PR_BGD
     labels[inside & ~prune] = cv2.GC_PR_FGD
-    ys, xs = _near_box(mask.shape, box, PRUNE_WINDOW)
     out = np.zeros_like(mask)
-    out[ys, xs] = _run_grabcut(np.ascontiguousarray(image_bgr[ys, xs]), np.ascontiguousarray(labels[ys, xs]), None,
-                               iterations, cv2.GC_INIT_WITH_MASK)
+    out[ys, xs] = _run_grabcut(np.ascontiguousarray(image_bgr[ys, xs]), labels, None, iterations,
+                               cv2.GC_INIT_WITH_MASK)
     return _clean_mask(out, rect)
 
 

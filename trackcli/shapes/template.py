@@ -29,7 +29,7 @@ import numpy as np
 import yaml
 
 from trackcli.errors import TemplateError
-from trackcli.io.outputs import read_yaml_file, write_text
+from trackcli.io.outputs import other_kind, read_yaml_file, write_text
 
 FORMAT = 1
 KIND = "trackcli-template"
@@ -171,10 +171,9 @@ def load_template(path: str | Path) -> Template:
     """Read and validate a template file."""
     p = Path(path)
     data = read_yaml_file(p, "template", TemplateError)
-    kind = data.get("kind") if isinstance(data, dict) else None
-    if not isinstance(data, dict) or kind is None:
+    if not isinstance(data, dict) or data.get("kind") is None:
         raise TemplateError(f"{p}: not a trackcli template (a YAML file written by 'trackcli draw')")
-    if isinstance(kind, str) and kind.startswith("trackcli-") and kind != KIND:
-        raise TemplateError(f"{p}: a {kind[len('trackcli-'):]} file (kind: {kind}), not a template "
-                            "(a YAML file written by 'trackcli draw')")
+    other = other_kind(data, KIND)
+    if other:
+        raise TemplateError(f"{p}: {other}, not a template (a YAML file written by 'trackcli draw')")
     return Template.from_dict(data, where=str(p))
