@@ -85,8 +85,9 @@ def test_a_new_tracker_runs_through_the_loop_into_the_csv_and_the_recording(elli
 
 @pytest.mark.parametrize("name", ["condensation", "kalman"])
 def test_images_prepared_while_decoding_give_the_same_track(tmp_path, name):
-    """`track` makes each frame's feature image and colour map in the thread that decodes
-    ahead (Tracker.prepare); the track must be the one of images made in the tracking thread."""
+    """`track` makes each frame's feature image, colour map and (CONDENSATION) comparison with
+    the first frame in the thread that decodes ahead (Tracker.prepare); the track must be the
+    one of images made in the tracking thread."""
     import threading
 
     from conftest import write_ellipse_clip
@@ -94,7 +95,7 @@ def test_images_prepared_while_decoding_give_the_same_track(tmp_path, name):
     clip = write_ellipse_clip(tmp_path / "ellipse.avi", n_frames=24, seed=5)
     settings = Settings()
     space = _space()
-    prepared: list[tuple[str, bool]] = []
+    prepared: list[tuple[str, bool, bool]] = []
 
     def run(out, prepare_ahead: bool):
         with open_video(clip) as video:
@@ -103,7 +104,7 @@ def test_images_prepared_while_decoding_give_the_same_track(tmp_path, name):
 
             def prepare(frame):
                 data = tracker.prepare(frame)
-                prepared.append((threading.current_thread().name, data.colour is not None))
+                prepared.append((threading.current_thread().name, data.colour is not None, data.still is not None))
                 return data
 
             # with the measurement given, the loop makes the feature image itself and no colour
@@ -117,6 +118,8 @@ def test_images_prepared_while_decoding_give_the_same_track(tmp_path, name):
     run(tmp_path / "in_step.csv", False)
     # after the first frame, whose step learns the colours, the frames came with their colour map
     # made in the decoding thread (at most the queue's few frames decoded before that did not)
-    assert {t for t, _ in prepared} == {"trackcli-decode"}
-    assert sum(c for _, c in prepared) >= 24 - 6
+    assert {t for t, _, _ in prepared} == {"trackcli-decode"}
+    assert sum(c for _, c, _ in prepared) >= 24 - 6
+    stills = sum(s for _, _, s in prepared)
+    assert stills >= 24 - 6 if name == "condensation" else stills == 0  # the Kalman tracker has none
     assert (tmp_path / "ahead.csv").read_bytes() == (tmp_path / "in_step.csv").read_bytes()

@@ -111,6 +111,9 @@ class FrameData:
     colour: np.ndarray | LazyColourMap | None = None
     """The colour log-ratio map of the appearance model (:meth:`trackcli.observe.discriminant.Appearance.colour_map`);
     None: made when the frame is tracked."""
+    still: np.ndarray | None = None
+    """Where the frame kept the first frame's colours (:meth:`trackcli.observe.scene.StillScene.compare`);
+    None: made when the frame is tracked."""
     encoded: bytes | None = None
     """The frame's JPEG as its source stores it, for the recording (:attr:`trackcli.io.video.Frame.encoded`)."""
 
@@ -170,6 +173,10 @@ class Tracker(ABC):
     #: (:class:`trackcli.observe.presence.Presence`; None before): :meth:`prepare` makes the
     #: colour map with it
     judge: Any = None
+    #: the first frame, to tell later frames' still scene by, when the tracker uses it
+    #: (:class:`trackcli.observe.scene.StillScene`; None before the first frame or unused):
+    #: :meth:`prepare` compares frames with it
+    still_scene: Any = None
 
     def __init__(self, space: ShapeSpace, dynamics: Any, settings: Settings, rng: np.random.Generator | None = None,
                  *, X0: np.ndarray | None = None):
@@ -185,7 +192,8 @@ class Tracker(ABC):
 
     def prepare(self, frame: Any) -> FrameData:
         """The per-frame images that depend on the frame alone: its feature image and, once the
-        tracker has learned the object's appearance on its first frame, the colour map.
+        tracker has learned the object's appearance on its first frame, the colour map (and,
+        when it uses one, the comparison with the first frame).
 
         Safe to call from another thread while :meth:`step` runs (``track`` calls it in the
         thread that decodes ahead, so that these whole-frame images are made while the
@@ -198,8 +206,10 @@ class Tracker(ABC):
         if judge is not None:  # made where the tracker reads it (colour frames), else whole
             app = judge.app
             colour = app.colour_map(frame.image) if app.grey else LazyColourMap(app, frame.image)
+        scene = self.still_scene
+        still = scene.compare(frame.image) if scene is not None else None
         return FrameData(int(frame.index), float(frame.time), frame.image, feature_image(frame.image, m), colour,
-                         getattr(frame, "encoded", None))
+                         still, getattr(frame, "encoded", None))
 
 
 def run_tracker(tracker: Tracker, frames: Iterable[Any], measurement: MeasurementSettings | None = None

@@ -13,6 +13,7 @@ import logging
 from collections import deque
 from typing import Any, Iterable, Iterator
 
+import cv2
 import numpy as np
 
 from trackcli.dynamics.mixed import MixedDynamics, MixedPrediction
@@ -22,6 +23,7 @@ from trackcli.observe import discriminant as observe
 from trackcli.observe import measure
 from trackcli.observe.models import observation_model
 from trackcli.observe.presence import Presence
+from trackcli.observe.scene import StillScene
 from trackcli.shapes.outline import contour_summary, measurement_sampler
 from trackcli.shapes.shape_space import ShapeSpace
 from trackcli.trackers import condensation as cond
@@ -183,6 +185,12 @@ class CondensationTracker(Tracker):
     ``reacquire_speed`` object sizes per second lost, or by :data:`REACQUIRE_PACE` times the
     fastest the object was seen to move if that is more (0: the whole frame at once).
 
+    With the discriminant, every frame is also compared with the first
+    (:class:`~trackcli.observe.scene.StillScene`): a sample whose outline lies on pixels that
+    kept the first frame's colours (a look-alike standing in the scene, with a still camera)
+    loses ``still_weight`` times the template's score on its first frame, in proportion to
+    its stillness, and the confidence is multiplied by one less the estimate's stillness.
+
     The sample set starts either as a Gaussian about ``X0`` (``init = "template"``, AC §12.4,
     "positioned by hand") or from the steady state of the motion model (``"steady_state"``,
     000 §5.1), with ``initial_particles`` samples falling to ``particles`` over
@@ -275,6 +283,12 @@ class CondensationTracker(Tracker):
             log.warning("%sthe template scores %.2f per normal on frame %d, no more object-like than clutter: "
                         "the lost verdict and the confidence will be unreliable (a tighter outline, or the "
                         "object on another frame, may do better)", where, self.judge.reference, frame.index)
+        if c.likelihood == "discriminant" and c.still_weight > 0:
+            poly, _, _ = contour_summary(space, self.X0)
+            skip = np.zeros(frame.image.shape[:2], np.uint8)  # the object's place, and any bars
+            cv2.fillPoly(skip, [np.round(poly).astype(np.int32)], 1)
+            self.still_scene = StillScene(frame.image, skip, self.judge.app.size, area=area)
+            self.still_penalty = c.still_weight * self.settings.measurement.n_normals * max(self.judge.reference, 0.5)
         self.jumps = translation_jumps(c.jump_fraction, c.jump_size * self.judge.app.size, c.jump_brake)
         self.scale_search = self._scale_search()
 
@@ -315,9 +329,17 @@ class CondensationTracker(Tracker):
         fimg = ev.fimg  # without letterbox bars
         self.observation.prepare(frame.image, fimg, ev)
 
+        scene = self.still_scene if self.k > 0 else None
+        still = None
+        if scene is not None:  # where the frame kept the first frame's colours
+            still = frame.still if frame.still is not None else scene.compare(frame.image)
+
         def loglik(X: np.ndarray) -> np.ndarray:
             pts, nrm = space.points_normals(X, self.sampler)
-            return self.observation.log_likelihood(pts, nrm)
+            ll = self.observation.log_likelihood(pts, nrm)
+            if scene is not None:
+                ll = ll - self.still_penalty * scene.stillness(still, pts, nrm)
+            return ll
 
         if self.k == 0:
             ll = loglik(self.particles.cur)
@@ -351,6 +373,8 @@ class CondensationTracker(Tracker):
         # than one followed from frame to frame does (a stricter centre of the confidence)
         strict = self.recovery_centre if self.losses.reacquire else None
         conf, log_d, score_mean = judge.confidence(ev, pts, nrm, spread, posterior_score=post, centre=strict)
+        if scene is not None:  # an outline on the first frame's scene is not on the object
+            conf *= 1.0 - float(scene.stillness(still, pts, nrm))
         loglik_mean = score_mean if discriminant else float(loglik(X[None])[0])
         lost = conf < m.lost_below
         self.losses.push(lost)
