@@ -378,6 +378,13 @@ def _colour_model(frame_bgr: np.ndarray, inside: np.ndarray, size: float, *, gre
     return np.clip(np.log(pf / pb), -COLOUR_CLIP, COLOUR_CLIP).astype(np.float32)
 
 
+def polygon_mask(polygon: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """The inside of a closed polygon (n, 2) as a uint8 0/1 mask of ``shape[:2]``."""
+    inside = np.zeros(shape[:2], np.uint8)
+    cv2.fillPoly(inside, [np.round(np.asarray(polygon, dtype=float)).astype(np.int32)], 1)
+    return inside
+
+
 def learn_appearance(frame_bgr: np.ndarray, fimg: np.ndarray, points: np.ndarray, normals: np.ndarray,
                      polygon: np.ndarray, *, h: float, sigma: float, threshold: float) -> Appearance:
     """Learn polarity per normal, interior feature density and colour from the template.
@@ -416,8 +423,7 @@ def learn_appearance(frame_bgr: np.ndarray, fimg: np.ndarray, points: np.ndarray
     lam = feature_density(img, centre, size, threshold)
     lambda_in = max((inner + lam * 2 * m) / (length + 2 * m), MIN_DENSITY)
     offsets = np.unique(np.maximum(1.5, np.round(np.array(_COLOUR_FRACTIONS) * size))).astype(np.float32)
-    inside = np.zeros(img.shape, np.uint8)
-    cv2.fillPoly(inside, [np.round(np.asarray(polygon, dtype=float)).astype(np.int32)], 1)
+    inside = polygon_mask(polygon, img.shape)
     grey = is_grey(frame_bgr, inside > 0)
     return Appearance(polarity=polarity, lambda_in=float(lambda_in),
                       lut=_colour_model(frame_bgr, inside, size, grey=grey), size=size, colour_offsets=offsets,

@@ -117,10 +117,10 @@ def _kept(still_map, pts, nrm, d, inv_k, m, kept, usable):  # pragma: no cover -
             if not (x > -0.5 and x < w - 0.5 and y > -0.5 and y < h - 0.5):
                 continue
             v = still_map[int(y + 0.5), int(x + 0.5)]
-            if v & 2:
+            if v & _OWN:
                 continue
             nu += 1
-            if v & 1:
+            if v & _KEPT:
                 nk += 1
         kept[i] = nk
         usable[i] = nu

@@ -13,7 +13,6 @@ import logging
 from collections import deque
 from typing import Any, Iterable, Iterator
 
-import cv2
 import numpy as np
 
 from trackcli.dynamics.mixed import MixedDynamics, MixedPrediction
@@ -285,9 +284,8 @@ class CondensationTracker(Tracker):
                         "object on another frame, may do better)", where, self.judge.reference, frame.index)
         if c.likelihood == "discriminant" and c.still_weight > 0:
             poly, _, _ = contour_summary(space, self.X0)
-            skip = np.zeros(frame.image.shape[:2], np.uint8)  # the object's place, and any bars
-            cv2.fillPoly(skip, [np.round(poly).astype(np.int32)], 1)
-            self.still_scene = StillScene(frame.image, skip, self.judge.app.size, area=area)
+            own = observe.polygon_mask(poly, frame.image.shape)  # the object's place: never judged
+            self.still_scene = StillScene(frame.image, own, self.judge.app.size, area=area)
             self.still_penalty = c.still_weight * self.settings.measurement.n_normals * max(self.judge.reference, 0.5)
         self.jumps = translation_jumps(c.jump_fraction, c.jump_size * self.judge.app.size, c.jump_brake)
         self.scale_search = self._scale_search()
