@@ -640,6 +640,35 @@ def test_an_estimate_half_beyond_the_frame_edge_is_not_held():
     assert judge.confidence(ev, pts, nrm, 0.0)[0] < m.lost_below
 
 
+def test_an_object_the_frame_edge_cuts_is_judged_on_the_part_in_view():
+    """The object moving out across the frame's right edge, followed exactly: the normals beyond
+    the edge have no data, and read as a boundary missed.  The confidence is what the part in
+    view shows (as high as the whole object's in full view) times the factor for how much of
+    the outline is in view; the normals beyond the edge do not lower it a second time."""
+    space, judge, sampler, ev_full = ellipse_scene(0)
+    m = MeasurementSettings()
+    pts, nrm = space.points_normals(np.zeros(space.Nx), sampler)
+    full = judge.confidence(ev_full, pts, nrm, 0.0)[0]
+    assert full > 0.9
+    for cx in (W - 16.0, W - 8.0):  # about 0.6 and 0.55 of the outline in view
+        img = object_frame(np.random.default_rng(7), centre=(cx, 120.0))
+        fimg = measure.feature_image(img, sigma=m.smoothing, edge_sigma=m.edge_sigma)
+        X = np.zeros(space.Nx)
+        X[0] = cx - 240.0
+        ev = judge.evidence(img, fimg, space.origin + X[:2])
+        pts, nrm = space.points_normals(X, sampler)
+        visible = observe.visible_share(pts, img.shape)
+        assert 0.5 < visible < 0.65
+        factor = (visible - observe.VISIBLE_NONE) / (observe.VISIBLE_FULL - observe.VISIBLE_NONE)
+        conf, log_d, loglik = judge.confidence(ev, pts, nrm, 0.0)
+        assert conf == pytest.approx(full * factor, abs=0.05)
+        # what is reported for the curve is its whole log-likelihood, as the trackers score it
+        assert loglik == pytest.approx(float(judge.score(ev, pts, nrm)), rel=1e-6)
+        d, _ = observe.per_normal(judge.app, ev, pts, nrm, h=judge.h, sigma=judge.sigma, threshold=judge.threshold,
+                                  miss=judge.miss)
+        assert log_d == pytest.approx(float(d.sum()), rel=1e-9)
+
+
 def test_an_object_the_frame_edge_cuts_from_the_start_is_held():
     """Visibility is judged against the template's own: an object drawn where the frame's edge cuts
     it (a bust, a car entering) and still cut the same way is held."""

@@ -594,8 +594,21 @@ def presence(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np
     """Evidence that one curve (M, 2) is on the object: ``(score, mean log D_i, mean c_i)``.
 
     ``score = mean_i (log D_i + w_c c_i)`` per normal; the other two are its edge and colour parts.
+    The means are taken over the normals whose base point is in the picture (all of them
+    when none is): beyond the frame's edge there are no data, and a normal there reads as a
+    missed boundary, so an object the edge cuts would be judged on what it does not show.
+    How much of the curve is in view is the confidence's own factor (:func:`confidence`).
     """
     log_d, colour = per_normal(app, ev, points, normals, h=h, sigma=sigma, threshold=threshold, miss=miss)
+    return presence_in_view(log_d, colour, points, ev, colour_weight)
+
+
+def presence_in_view(log_d: np.ndarray, colour: np.ndarray, points: np.ndarray, ev: FrameEvidence,
+                     colour_weight: float) -> tuple[float, float, float]:
+    """:func:`presence` from one curve's terms per normal (:func:`per_normal`)."""
+    seen = in_picture(np.asarray(points).reshape(-1, 2), ev.fimg.shape, ev.area)
+    if seen.any() and not seen.all():
+        log_d, colour = log_d[seen], colour[seen]
     e, col = float(log_d.mean()), float(colour.mean())
     return e + colour_weight * col, e, col
 
@@ -608,14 +621,21 @@ VISIBLE_FULL = 0.8
 VISIBLE_NONE = 0.3
 
 
-def visible_share(points: np.ndarray, frame_shape: tuple[int, ...],
-                  area: tuple[int, int, int, int] | None = None) -> float:
-    """The share of a curve's points ``(M, 2)`` that lie inside a frame of ``frame_shape`` (h, w, ...),
-    or inside its picture ``area = (x0, y0, x1, y1)`` when it has bars."""
+def in_picture(points: np.ndarray, frame_shape: tuple[int, ...],
+               area: tuple[int, int, int, int] | None = None) -> np.ndarray:
+    """Which of the points ``(M, 2)`` lie inside a frame of ``frame_shape`` (h, w, ...), or inside
+    its picture ``area = (x0, y0, x1, y1)`` when it has bars: bool (M,)."""
     h, w = frame_shape[:2]
     x0, y0, x1, y1 = area if area is not None else (0, 0, w, h)
     x, y = points[:, 0], points[:, 1]
-    return float(np.mean((x >= x0) & (x <= x1 - 1) & (y >= y0) & (y <= y1 - 1)))
+    return (x >= x0) & (x <= x1 - 1) & (y >= y0) & (y <= y1 - 1)
+
+
+def visible_share(points: np.ndarray, frame_shape: tuple[int, ...],
+                  area: tuple[int, int, int, int] | None = None) -> float:
+    """The share of a curve's points ``(M, 2)`` that lie inside the frame or its picture
+    (:func:`in_picture`)."""
+    return float(np.mean(in_picture(points, frame_shape, area)))
 
 
 def picture_area(frame: np.ndarray) -> tuple[int, int, int, int] | None:

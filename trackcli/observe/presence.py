@@ -79,7 +79,8 @@ class Presence:
     def confidence(self, ev: observe.FrameEvidence, pts: np.ndarray, nrm: np.ndarray, spread: float,
                    posterior_score: float | None = None, centre: float | None = None) -> tuple[float, float, float]:
         """``(confidence, log D, log-likelihood)`` of one curve, ``spread`` its positional spread in
-        object sizes; the log-likelihood is :meth:`score` of the curve.
+        object sizes; ``log D`` and the log-likelihood (:meth:`score`) are the sums over the
+        whole curve, the confidence judges the normals in the frame (:func:`observe.presence`).
 
         ``posterior_score``, when given, is the presence score the sample set puts on the
         object (its weighted mean score per normal); the larger of it and the curve's own
@@ -88,12 +89,14 @@ class Presence:
         ``centre``, when given, replaces :attr:`centre` (the share of the reference at which
         the confidence is 0.5).
         """
-        s, e, _ = observe.presence(self.app, ev, pts, nrm, h=self.h, sigma=self.sigma, threshold=self.threshold,
-                                   miss=self.miss, colour_weight=self.colour_weight)
-        total = s * pts.shape[0]
+        log_d, colour = observe.per_normal(self.app, ev, pts, nrm, h=self.h, sigma=self.sigma,
+                                           threshold=self.threshold, miss=self.miss)
+        s, _, _ = observe.presence_in_view(log_d, colour, pts, ev, self.colour_weight)
+        e = float(log_d.sum())  # the whole curve's, as the trackers score it
+        total = e + self.colour_weight * float(colour.sum())
         if posterior_score is not None and math.isfinite(posterior_score):
             s = max(s, posterior_score)
         visible = min(1.0, observe.visible_share(pts, ev.fimg.shape, ev.area) / self.visible_start)
         conf = observe.confidence(s, spread, reference=self.reference,
                                   centre=self.centre if centre is None else centre, visible=visible)
-        return conf, e * pts.shape[0], total
+        return conf, e, total
