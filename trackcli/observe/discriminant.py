@@ -600,13 +600,14 @@ def presence(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np
     How much of the curve is in view is the confidence's own factor (:func:`confidence`).
     """
     log_d, colour = per_normal(app, ev, points, normals, h=h, sigma=sigma, threshold=threshold, miss=miss)
-    return presence_in_view(log_d, colour, points, ev, colour_weight)
-
-
-def presence_in_view(log_d: np.ndarray, colour: np.ndarray, points: np.ndarray, ev: FrameEvidence,
-                     colour_weight: float) -> tuple[float, float, float]:
-    """:func:`presence` from one curve's terms per normal (:func:`per_normal`)."""
     seen = in_picture(np.asarray(points).reshape(-1, 2), ev.fimg.shape, ev.area)
+    return presence_in_view(log_d, colour, seen, colour_weight)
+
+
+def presence_in_view(log_d: np.ndarray, colour: np.ndarray, seen: np.ndarray,
+                     colour_weight: float) -> tuple[float, float, float]:
+    """:func:`presence` from one curve's terms per normal (:func:`per_normal`) and which of its
+    normals are in the picture (:func:`in_picture`)."""
     if seen.any() and not seen.all():
         log_d, colour = log_d[seen], colour[seen]
     e, col = float(log_d.mean()), float(colour.mean())

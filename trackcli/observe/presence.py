@@ -91,12 +91,13 @@ class Presence:
         """
         log_d, colour = observe.per_normal(self.app, ev, pts, nrm, h=self.h, sigma=self.sigma,
                                            threshold=self.threshold, miss=self.miss)
-        s, _, _ = observe.presence_in_view(log_d, colour, pts, ev, self.colour_weight)
+        seen = observe.in_picture(pts, ev.fimg.shape, ev.area)
+        s, _, _ = observe.presence_in_view(log_d, colour, seen, self.colour_weight)
         e = float(log_d.sum())  # the whole curve's, as the trackers score it
         total = e + self.colour_weight * float(colour.sum())
         if posterior_score is not None and math.isfinite(posterior_score):
             s = max(s, posterior_score)
-        visible = min(1.0, observe.visible_share(pts, ev.fimg.shape, ev.area) / self.visible_start)
+        visible = min(1.0, float(seen.mean()) / self.visible_start)
         conf = observe.confidence(s, spread, reference=self.reference,
                                   centre=self.centre if centre is None else centre, visible=visible)
         return conf, e, total
