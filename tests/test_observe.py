@@ -16,6 +16,7 @@ from trackcli.io.config import CondensationSettings, DynamicsSettings, Measureme
 from trackcli.shapes.shape_space import similarity
 from trackcli.shapes.spline import SplineBasis
 from trackcli.observe.presence import Presence
+from trackcli.observe.scene import StillScene, in_first_light
 from trackcli.shapes.outline import contour_summary, measurement_sampler, object_size
 from trackcli.dynamics.handset import handset_dynamics
 
@@ -444,6 +445,36 @@ def test_colour_map_is_the_lookup_of_the_hsv_bins():
                                                                       lut.reshape(1, -1)))
 
 
+def test_the_colour_model_is_read_in_the_first_frames_light_when_the_light_changes():
+    # a red ellipse of value 120, just under the edge of a value bin (128), and a band of the
+    # same hue and saturation at value 180 (the next bin) in the background; the light then
+    # rises by a fifth over the whole scene, as when clouds part or a camera's exposure
+    # changes, and the object's value (144) enters the band's bin
+    rng = np.random.default_rng(12)
+    dark, bright = (28, 36, 120), (42, 54, 180)  # BGR; the second is the first times 1.5
+    first = textured_background(rng)
+    cv2.rectangle(first, (0, 200), (W - 1, H - 1), bright, -1)
+    cv2.ellipse(first, ((240.0, 100.0), (60.0, 80.0), 0.0), dark, -1)
+    judge, _, _ = presence_for(first, ellipse_space(240, 100, 30, 40))
+    assert not judge.app.grey
+    lit = np.clip(first.astype(np.float64) * 1.2, 0, 255).astype(np.uint8)
+    assert observe.hsv_bins(lit)[100, 240] == observe.hsv_bins(first)[220, 10]
+    inside = np.zeros((H, W), np.uint8)
+    cv2.ellipse(inside, ((240.0, 100.0), (48.0, 68.0), 0.0), 1, -1)
+    plain = np.zeros((H, W), np.uint8)
+    plain[20:180, 200:310] = 1
+    cv2.ellipse(plain, ((240.0, 100.0), (84.0, 104.0), 0.0), 0, -1)
+    assert judge.app.colour_map(lit)[inside > 0].mean() < 0.0  # read as it is, the object is background
+    own = np.zeros((H, W), np.uint8)
+    cv2.ellipse(own, ((240.0, 100.0), (60.0, 80.0), 0.0), 1, -1)
+    _, exposure = StillScene(first, own, judge.app.size).measure(lit)
+    assert exposure is not None
+    for frame in (first, in_first_light(lit, exposure)):
+        cmap = judge.app.colour_map(frame)
+        assert cmap[inside > 0].mean() > 1.0  # object-coloured
+        assert cmap[plain > 0].mean() < -1.0  # and the wall beside it background
+
+
 def test_a_colour_map_made_where_it_is_read_has_the_whole_maps_values():
     """LazyColourMap: any rectangle made equals the whole-frame map there (and 0 elsewhere),
     also with letterbox bars; scoring curves with it gives the whole map's scores to the bit."""
@@ -468,6 +499,11 @@ def test_a_colour_map_made_where_it_is_read_has_the_whole_maps_values():
                  max(0, int(math.floor(x0))):max(0, int(math.ceil(x1)))] = True
             np.testing.assert_array_equal(lazy.array[made], want[made])
         np.testing.assert_array_equal(lazy.whole(), want)
+    # with an exposure: the whole map of the frame brought back to the first frame's light
+    exposure = (np.array([1.2, 0.9, 1.1]), np.array([4.0, -3.0, 0.0]))
+    lazy = observe.LazyColourMap(app, frame, exposure)
+    np.testing.assert_array_equal(lazy.whole(), app.colour_map(in_first_light(frame, exposure)))
+    assert not np.array_equal(lazy.array, whole)
     # the tracker's scores with the map made where the samples read it
     space, judge, sampler, ev = ellipse_scene(3)
     X = np.zeros((300, 4))

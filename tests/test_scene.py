@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from trackcli.observe.scene import StillScene
+from trackcli.observe.scene import StillScene, in_first_light
 
 
 def textured(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
@@ -116,3 +116,45 @@ def test_letterbox_bars_are_never_judged():
     kept, usable = still.kept_share(smap, *circle(200, 10, 20))  # mostly on the top bar
     assert usable < 0.4 and still.stillness(smap, *circle(200, 10, 20)) == 0.0
     assert still.stillness(smap, *circle(200, 120, 20)) == 1.0
+
+
+@pytest.mark.parametrize("gain,offset", [(1.0, 0.0), (1.25, -10.0), (0.8, 15.0)])
+def test_a_change_of_the_light_over_the_scene_is_measured_and_undone(scene, gain, offset):
+    rng, first, still = scene
+    frame = disc(first, 120, 180, 20, (40, 160, 60))  # the object moved, and the light changed
+    smap, exposure = still.measure(later(rng, frame, gain, offset, noise=1.0))
+    assert exposure is not None
+    np.testing.assert_allclose(exposure[0], gain, atol=0.03)
+    np.testing.assert_allclose(exposure[1], offset, atol=4.0)
+    assert still.stillness(smap, *circle(200, 150, 20)) == 1.0  # the map as compare makes it
+    back = in_first_light(np.clip(frame * gain + offset, 0, 255).astype(np.uint8), exposure)
+    assert np.abs(back.astype(float) - frame).mean() < 3.0  # the frame as the first light showed it
+
+
+def test_no_exposure_is_taken_from_a_moving_camera_or_another_size(scene):
+    rng, first, still = scene
+    for shift in (9, 40):
+        smap, exposure = still.measure(np.roll(later(rng, first, 1.2, 0.0), shift, axis=1))
+        assert exposure is None
+    assert still.measure(np.zeros((100, 100, 3), np.uint8)) == (None, None)
+    image = later(rng, first)
+    assert in_first_light(image, None) is image
+    assert in_first_light(image, (np.ones(3), np.zeros(3))) is image
+    grey = image[:, :, 1]
+    np.testing.assert_allclose(in_first_light(grey, (np.array([2.0]), np.array([0.0]))), np.round(grey / 2.0), atol=1)
+
+
+def test_grey_frames_are_told_and_never_brought_back():
+    # one channel agreeing is weak evidence of a still camera: grey frames keep their exposure
+    rng = np.random.default_rng(5)
+    colour = textured(rng, (120, 160)).astype(np.uint8)
+    still = StillScene(colour, own_place(colour.shape), size=36.0)
+    assert not still.grey
+    assert still.measure(later(rng, colour, 1.2, 0.0, noise=1.0))[1] is not None
+    grey = cv2.cvtColor(cv2.cvtColor(colour, cv2.COLOR_BGR2GRAY), cv2.COLOR_GRAY2BGR)  # read as BGR
+    for first in (grey, grey[:, :, 0]):
+        still = StillScene(first, own_place(first.shape), size=36.0)
+        assert still.grey
+        smap, exposure = still.measure(later(rng, first, 1.2, 0.0, noise=1.0))
+        assert exposure is None
+        assert still.stillness(smap, *circle(130, 60, 20)) == 1.0  # the still scene works as before

@@ -12,6 +12,12 @@ its *stillness* is the share of them that kept the first frame's colour.  The pi
 object's own place on the first frame are left out (the object may stand still, or come
 back).  With a moving camera, or when the light changes unevenly, few pixels keep their
 colour and the test says nothing.
+
+The same fit tells when the light changed over the whole scene (clouds, a camera's automatic
+exposure): with a still camera most of a colour frame agrees with it.  The tracker then reads its
+colour model, learned on the first frame, on the frame brought back to the first frame's
+exposure (:func:`in_first_light`); a colour histogram's bins are fixed, and an object that
+brightens by a fifth can cross into bins where the model has only background.
 """
 
 from __future__ import annotations
@@ -38,6 +44,23 @@ INSIDE = 0.06
 FIT_PIXELS = 3000
 #: frames are compared reduced to at most about this many pixels (640 x 360)
 WORK_PIXELS = 640 * 360
+
+#: the exposure fitted on a colour frame is taken as a change of the light over the whole scene
+#: when at least this share of the pixels it was fitted on agree with it in every channel: with
+#: a still camera most of the scene does (0.77-0.98 on the dev clips), with a moving one only
+#: its uniform regions (at most 0.72).  On grey frames one channel agreeing says less: a moving
+#: camera's grey frames agreed up to 0.88, and the grey level of a large object's reduced frame
+#: up to 0.95, as much as still cameras' (0.94 and more), so they are never corrected ...
+EXPOSURE_SHARE = 0.75
+#: ... and every channel's gain is inside these bounds (the fit is held to [0.5, 2]; a gain at
+#: its bounds is no fit)
+EXPOSURE_GAINS = (0.55, 1.8)
+
+#: a frame is grey when fewer than this share of its pixels have channels more than
+#: :data:`GREY_SPREAD` levels apart (the colour model tells grey frames the same way,
+#: :func:`trackcli.observe.discriminant.is_grey`)
+GREY_SHARE = 0.01
+GREY_SPREAD = 8
 
 #: bits of the map
 _KEPT, _OWN = 1, 2
@@ -104,6 +127,29 @@ def _exposure(now, first, step, levels):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
+def _agreement(now, first, step, levels, gain, offset):  # pragma: no cover - compiled
+    """The share of every ``step``-th pixel in each direction whose every channel of ``now`` is
+    within ``levels`` of ``gain * first + offset`` (float32 arithmetic)."""
+    h, w, c = first.shape
+    g = gain.astype(np.float32)
+    o = offset.astype(np.float32)
+    lim = np.float32(levels)
+    n = 0
+    total = 0
+    for y in range(0, h, step):
+        for x in range(0, w, step):
+            total += 1
+            fits = True
+            for ch in range(c):
+                if abs(np.float32(now[y, x, ch]) - (np.float32(first[y, x, ch]) * g[ch] + o[ch])) >= lim:
+                    fits = False
+                    break
+            if fits:
+                n += 1
+    return n / max(total, 1)
+
+
+@njit(cache=True, nogil=True)
 def _kept(still_map, pts, nrm, d, inv_k, m, kept, usable):  # pragma: no cover - compiled
     """For curves of ``m`` points (flattened ``pts``, ``nrm``: (n m, 2) float32): how many of
     the pixels ``d`` inside each outline kept their colour, and how many are usable."""
@@ -150,6 +196,8 @@ class StillScene:
         self.k = 2 ** math.ceil(math.log2(k) - 1e-9)
         self.size = float(size)
         self.first = _smooth(first, self.k)
+        spread = self.first.max(axis=2) - self.first.min(axis=2)
+        self.grey = bool(np.mean(spread > GREY_SPREAD) < GREY_SHARE)  # one channel, or three alike
         h, w = self.first.shape[:2]
         own = np.asarray(own, dtype=np.uint8)
         own = cv2.resize(own, (w, h), interpolation=cv2.INTER_NEAREST) if own.shape != (h, w) else own
@@ -167,11 +215,25 @@ class StillScene:
         """The map of a later frame (the same size and channels as the first; else None): bit 0
         set where the pixel kept the first frame's colour, bit 1 on the object's own place.
         Reads only what the constructor made, so any thread may call it."""
+        return self.measure(frame)[0]
+
+    def measure(self, frame: np.ndarray) -> tuple[np.ndarray | None, tuple[np.ndarray, np.ndarray] | None]:
+        """``(map, exposure)``: the map of :meth:`compare`, and the frame's exposure against the
+        first frame's, ``(gain, offset)`` per channel (the frame is ``gain * first + offset``),
+        when most of the scene agrees with it (:data:`EXPOSURE_SHARE`, :data:`EXPOSURE_GAINS`):
+        a change of the light seen by a still camera; else (and on grey frames) None.  Any
+        thread may call it."""
         now = _smooth(frame, self.k)
         if now.shape != self.first.shape:
-            return None
+            return None, None
         step = max(1, int(round(math.sqrt(now.shape[0] * now.shape[1] / FIT_PIXELS))))
         gain, offset = _exposure(now, self.first, step, 2.0 * KEPT_LEVELS)
+        agree = _agreement(now, self.first, step, 2.0 * KEPT_LEVELS, gain, offset)
+        trusted = (not self.grey and agree >= EXPOSURE_SHARE
+                   and bool(np.all((gain > EXPOSURE_GAINS[0]) & (gain < EXPOSURE_GAINS[1]))))
+        return self._map(now, gain, offset), ((gain, offset) if trusted else None)
+
+    def _map(self, now: np.ndarray, gain: np.ndarray, offset: np.ndarray) -> np.ndarray:
         c = now.shape[2]
         if c == 1:  # the first frame in this frame's exposure
             expected = cv2.convertScaleAbs(self.first[:, :, 0], alpha=float(gain[0]), beta=float(offset[0]))
@@ -209,3 +271,23 @@ class StillScene:
         kept, usable = self.kept_share(still_map, points, normals)
         s = np.clip((kept - STILL_FROM) / (STILL_FULL - STILL_FROM), 0.0, 1.0)
         return np.where(usable >= USABLE_MIN, s, 0.0)
+
+
+def in_first_light(image: np.ndarray, exposure: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
+    """``image`` (BGR or grey, uint8) brought back to the first frame's exposure: ``(image -
+    offset) / gain`` per channel, for an ``exposure`` of :meth:`StillScene.measure`; the image
+    itself when ``exposure`` is None or within a hundredth of gain and a level of offset of none."""
+    if exposure is None:
+        return image
+    gain, offset = (np.asarray(v, dtype=np.float64).reshape(-1) for v in exposure)
+    if np.all(np.abs(gain - 1.0) < 0.01) and np.all(np.abs(offset) < 1.0):
+        return image
+    img = np.asarray(image)
+    if img.ndim == 2 or img.shape[2] == 1 or gain.size == 1:
+        g, o = float(gain.mean()), float(offset.mean())
+        return cv2.convertScaleAbs(img, alpha=1.0 / g, beta=-o / g).reshape(img.shape)
+    c = img.shape[2]
+    mat = np.zeros((c, c + 1), np.float32)
+    mat[np.arange(c), np.arange(c)] = 1.0 / gain[:c]
+    mat[:, c] = -offset[:c] / gain[:c]
+    return cv2.transform(img, mat)

@@ -29,6 +29,7 @@ import numpy as np
 from trackcli.io.config import MeasurementSettings, Settings
 from trackcli.observe import measure
 from trackcli.observe.discriminant import LazyColourMap
+from trackcli.observe.scene import in_first_light
 from trackcli.shapes.shape_space import ShapeSpace
 
 
@@ -193,7 +194,9 @@ class Tracker(ABC):
     def prepare(self, frame: Any) -> FrameData:
         """The per-frame images that depend on the frame alone: its feature image and, once the
         tracker has learned the object's appearance on its first frame, the colour map (and,
-        when it uses one, the comparison with the first frame).
+        when it uses one, the comparison with the first frame; the colour map is then read on
+        the frame in the first frame's exposure when the light changed over the whole scene,
+        :meth:`trackcli.observe.scene.StillScene.measure`).
 
         Safe to call from another thread while :meth:`step` runs (``track`` calls it in the
         thread that decodes ahead, so that these whole-frame images are made while the
@@ -202,14 +205,23 @@ class Tracker(ABC):
         """
         m = self.settings.measurement
         judge = self.judge
+        scene = self.still_scene
+        still, exposure = scene.measure(frame.image) if scene is not None else (None, None)
         colour = None
         if judge is not None:  # made where the tracker reads it (colour frames), else whole
-            app = judge.app
-            colour = app.colour_map(frame.image) if app.grey else LazyColourMap(app, frame.image)
-        scene = self.still_scene
-        still = scene.compare(frame.image) if scene is not None else None
+            colour = colour_map(judge.app, frame.image, exposure)
         return FrameData(int(frame.index), float(frame.time), frame.image, feature_image(frame.image, m), colour,
                          still, getattr(frame, "encoded", None))
+
+
+def colour_map(app: Any, image: np.ndarray, exposure: tuple[np.ndarray, np.ndarray] | None = None
+               ) -> np.ndarray | LazyColourMap:
+    """The colour map of ``image`` for the appearance model ``app``, read in the first frame's
+    exposure when ``exposure`` is given (:func:`trackcli.observe.scene.in_first_light`): made
+    where the tracker reads it on colour frames (:class:`LazyColourMap`), whole on grey ones."""
+    if app.grey:
+        return app.colour_map(in_first_light(image, exposure))
+    return LazyColourMap(app, image, exposure)
 
 
 def run_tracker(tracker: Tracker, frames: Iterable[Any], measurement: MeasurementSettings | None = None

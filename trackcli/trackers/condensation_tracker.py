@@ -26,7 +26,7 @@ from trackcli.observe.scene import StillScene
 from trackcli.shapes.outline import contour_summary, measurement_sampler
 from trackcli.shapes.shape_space import ShapeSpace
 from trackcli.trackers import condensation as cond
-from trackcli.trackers.base import FrameData, FrameResult, LossRecord, Tracker, run_tracker
+from trackcli.trackers.base import FrameData, FrameResult, LossRecord, Tracker, colour_map, run_tracker
 
 log = logging.getLogger(__name__)
 
@@ -189,6 +189,9 @@ class CondensationTracker(Tracker):
     kept the first frame's colours (a look-alike standing in the scene, with a still camera)
     loses ``still_weight`` times the template's score on its first frame, in proportion to
     its stillness, and the confidence is multiplied by one less the estimate's stillness.
+    When the light changed over the whole scene, the colour model is read on the frame
+    brought back to the first frame's exposure (:meth:`~trackcli.observe.scene.StillScene.measure`),
+    whatever ``still_weight``.
 
     The sample set starts either as a Gaussian about ``X0`` (``init = "template"``, AC §12.4,
     "positioned by hand") or from the steady state of the motion model (``"steady_state"``,
@@ -282,7 +285,7 @@ class CondensationTracker(Tracker):
             log.warning("%sthe template scores %.2f per normal on frame %d, no more object-like than clutter: "
                         "the lost verdict and the confidence will be unreliable (a tighter outline, or the "
                         "object on another frame, may do better)", where, self.judge.reference, frame.index)
-        if c.likelihood == "discriminant" and c.still_weight > 0:
+        if c.likelihood == "discriminant":  # the still scene's penalty, and the exposure
             poly, _, _ = contour_summary(space, self.X0)
             own = observe.polygon_mask(poly, frame.image.shape)  # the object's place: never judged
             self.still_scene = StillScene(frame.image, own, self.judge.app.size, area=area)
@@ -323,14 +326,17 @@ class CondensationTracker(Tracker):
         if self.judge is None:
             self._start(frame)
         judge = self.judge
-        ev = judge.evidence(frame.image, frame.features, self.centre, frame.colour)
+        colour, still = frame.colour, frame.still
+        if self.k > 0 and self.still_scene is not None and (colour is None or still is None):
+            # not made by prepare (the frame was made before the appearance was learned)
+            still, exposure = self.still_scene.measure(frame.image)
+            colour = colour_map(judge.app, frame.image, exposure)
+        ev = judge.evidence(frame.image, frame.features, self.centre, colour)
         fimg = ev.fimg  # without letterbox bars
         self.observation.prepare(frame.image, fimg, ev)
 
-        scene = self.still_scene if self.k > 0 else None
-        still = None
-        if scene is not None:  # where the frame kept the first frame's colours
-            still = frame.still if frame.still is not None else scene.compare(frame.image)
+        # where the frame kept the first frame's colours
+        scene = self.still_scene if self.k > 0 and c.still_weight > 0 else None
 
         def loglik(X: np.ndarray) -> np.ndarray:
             pts, nrm = space.points_normals(X, self.sampler)
