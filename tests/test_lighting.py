@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from test_reacquire import H, W, background
 from trackcli.cli import cli
 
-W, H = 320, 240
 N = 60
 OVAL, BAND = (28, 36, 120), (42, 54, 180)  # BGR; the band is the oval 1.5 times as bright
 
@@ -33,16 +33,7 @@ def centre(k: int) -> tuple[float, float]:
 
 
 def write_clip(path: Path) -> Path:
-    rng = np.random.default_rng(3)
-    bg = np.full((H, W, 3), (110, 130, 115), np.float64) + rng.normal(0, 4, (H, W, 3))
-    bg = np.clip(bg, 0, 255).astype(np.uint8)
-    for _ in range(120):
-        x, y = (int(v) for v in rng.integers(0, [W, H]))
-        ang = rng.uniform(0, np.pi)
-        L = rng.uniform(10, 40)
-        shade = int(rng.choice([50, 200]))
-        cv2.line(bg, (x, y), (int(x + L * np.cos(ang)), int(y + L * np.sin(ang))), (shade, shade, shade), 1,
-                 cv2.LINE_AA)
+    bg = background(np.random.default_rng(3))  # the re-acquisition clip's cluttered grey-green
     cv2.rectangle(bg, (0, 195), (W - 1, H - 1), BAND, -1)
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, (W, H))
     assert writer.isOpened()
