@@ -79,7 +79,7 @@ import numpy as np
 from trackcli.errors import ConfigError, DataError
 from trackcli.observe.kernels import colour_lookup, count_line_features, discriminant_curves, discriminant_normals
 from trackcli.observe.measure import _as_image, _as_normals, _remap_rows, _scan_chunks
-from trackcli.observe.scene import GREY_SHARE, GREY_SPREAD, in_first_light
+from trackcli.observe.scene import first_light_matrix
 
 __all__ = ["Appearance", "FrameEvidence", "colour_peaks", "confidence", "evidence", "feature_density",
            "grey_texture", "hsv_bins", "learn_appearance", "local_mean_deviation", "normals_with_features",
@@ -96,8 +96,9 @@ TEXTURE_SIGMA = 2.0
 TEXTURE_EDGES = (2, 4, 7, 11, 16, 23, 32)
 TEXTURE_BINS = len(TEXTURE_EDGES) + 1
 #: A frame is grey (a monochrome clip, e.g. a grey JPEG sequence read as BGR) when fewer than
-#: :data:`GREY_SHARE` of its pixels have channels more than :data:`GREY_SPREAD` grey levels apart
-#: (defined in :mod:`trackcli.observe.scene`, whose exposure test tells grey frames the same way).
+#: :data:`GREY_SHARE` of its pixels have channels more than :data:`GREY_SPREAD` grey levels apart.
+GREY_SPREAD = 8
+GREY_SHARE = 0.01
 #: Letterbox and pillarbox bars: at least :data:`BAR_MIN` rows (columns) at the frame's edge,
 #: 90 % of whose pixels are no brighter than :data:`BAR_LEVEL` grey levels, with a picture of at
 #: least half the frame's height (width) between them.
@@ -180,7 +181,7 @@ class LazyColourMap:
             raise DataError("a lazily made colour map is for colour frames only")
         self._app = app
         self._frame = _bgr(frame_bgr)
-        self._exposure = exposure
+        self._undo = first_light_matrix(exposure, 3)
         h, w = self._frame.shape[:2]
         self.array = np.zeros((h, w), np.float32)
         b = self.BLOCK
@@ -215,7 +216,8 @@ class LazyColourMap:
         h, w = self.array.shape
         b = self.BLOCK
         X0, Y0, X1, Y1 = bx0 * b, by0 * b, min(bx1 * b, w), min(by1 * b, h)
-        out = self._app.colour_map(in_first_light(self._frame[Y0:Y1, X0:X1], self._exposure))
+        block = self._frame[Y0:Y1, X0:X1]
+        out = self._app.colour_map(block if self._undo is None else cv2.transform(block, self._undo))
         if self._area is not None:  # the bars, in the block's coordinates
             ax0, ay0, ax1, ay1 = self._area
             clear_bars(out, (max(0, ax0 - X0), max(0, ay0 - Y0), max(0, ax1 - X0), max(0, ay1 - Y0)))

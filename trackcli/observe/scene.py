@@ -56,12 +56,6 @@ EXPOSURE_SHARE = 0.75
 #: its bounds is no fit)
 EXPOSURE_GAINS = (0.55, 1.8)
 
-#: a frame is grey when fewer than this share of its pixels have channels more than
-#: :data:`GREY_SPREAD` levels apart (the colour model tells grey frames the same way,
-#: :func:`trackcli.observe.discriminant.is_grey`)
-GREY_SHARE = 0.01
-GREY_SPREAD = 8
-
 #: bits of the map
 _KEPT, _OWN = 1, 2
 
@@ -196,8 +190,8 @@ class StillScene:
         self.k = 2 ** math.ceil(math.log2(k) - 1e-9)
         self.size = float(size)
         self.first = _smooth(first, self.k)
-        spread = self.first.max(axis=2) - self.first.min(axis=2)
-        self.grey = bool(np.mean(spread > GREY_SPREAD) < GREY_SHARE)  # one channel, or three alike
+        from trackcli.observe.discriminant import is_grey  # (that module reads this one's results)
+        self.grey = self.first.shape[2] == 1 or is_grey(first)  # one channel or three alike: no exposure
         h, w = self.first.shape[:2]
         own = np.asarray(own, dtype=np.uint8)
         own = cv2.resize(own, (w, h), interpolation=cv2.INTER_NEAREST) if own.shape != (h, w) else own
@@ -273,21 +267,28 @@ class StillScene:
         return np.where(usable >= USABLE_MIN, s, 0.0)
 
 
-def in_first_light(image: np.ndarray, exposure: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
-    """``image`` (BGR or grey, uint8) brought back to the first frame's exposure: ``(image -
-    offset) / gain`` per channel, for an ``exposure`` of :meth:`StillScene.measure`; the image
-    itself when ``exposure`` is None or within a hundredth of gain and a level of offset of none."""
+def first_light_matrix(exposure: tuple[np.ndarray, np.ndarray] | None, channels: int) -> np.ndarray | None:
+    """The ``cv2.transform`` matrix (float32, ``(channels, channels + 1)``) that brings an image
+    of ``channels`` channels back to the first frame's exposure, ``(image - offset) / gain`` per
+    channel, for an ``exposure`` of :meth:`StillScene.measure` (a gain and offset per channel,
+    or one for all); None when ``exposure`` is None or within a hundredth of gain and a level of
+    offset of none.  Made once per frame, applied to each block of it that is read."""
     if exposure is None:
-        return image
+        return None
     gain, offset = (np.asarray(v, dtype=np.float64).reshape(-1) for v in exposure)
     if np.all(np.abs(gain - 1.0) < 0.01) and np.all(np.abs(offset) < 1.0):
-        return image
+        return None
+    if channels != gain.size:  # a grey image, or one exposure for every channel
+        gain, offset = np.full(channels, gain.mean()), np.full(channels, offset.mean())
+    mat = np.zeros((channels, channels + 1), np.float32)
+    mat[np.arange(channels), np.arange(channels)] = 1.0 / gain
+    mat[:, channels] = -offset / gain
+    return mat
+
+
+def in_first_light(image: np.ndarray, exposure: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
+    """``image`` (BGR or grey, uint8) brought back to the first frame's exposure
+    (:func:`first_light_matrix`); the image itself when that changes nothing."""
     img = np.asarray(image)
-    if img.ndim == 2 or img.shape[2] == 1 or gain.size == 1:
-        g, o = float(gain.mean()), float(offset.mean())
-        return cv2.convertScaleAbs(img, alpha=1.0 / g, beta=-o / g).reshape(img.shape)
-    c = img.shape[2]
-    mat = np.zeros((c, c + 1), np.float32)
-    mat[np.arange(c), np.arange(c)] = 1.0 / gain[:c]
-    mat[:, c] = -offset[:c] / gain[:c]
-    return cv2.transform(img, mat)
+    mat = first_light_matrix(exposure, 1 if img.ndim == 2 else img.shape[2])
+    return image if mat is None else cv2.transform(img, mat).reshape(img.shape)
