@@ -298,6 +298,31 @@ def test_presence_reference_is_the_templates_own_score():
     assert judge.app.size == pytest.approx(math.sqrt(abs(cv2.contourArea(poly.astype(np.float32)))), rel=1e-6)
 
 
+def in_view(pts: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """Which base points lie on the image (within its first and last pixel centres)."""
+    h, w = shape[:2]
+    return (pts[..., 0] >= 0) & (pts[..., 0] <= w - 1) & (pts[..., 1] >= 0) & (pts[..., 1] <= h - 1)
+
+
+def curve_scores(terms: np.ndarray, pts: np.ndarray, shape: tuple[int, ...], missed: float) -> np.ndarray:
+    """Each curve's score from its normals' terms (n, M), written out: the sum over the normals
+    in view, plus, per normal beyond the frame's edge, the mean of those in view when it is
+    negative; a curve with none in view, ``missed`` (every normal a missed boundary)."""
+    seen = in_view(pts, shape)
+    n_in = seen.sum(axis=-1)
+    total = np.where(seen, terms, 0.0).sum(axis=-1)
+    mean = total / np.maximum(n_in, 1)
+    out = total + (terms.shape[-1] - n_in) * np.minimum(mean, 0.0)
+    return np.where(n_in == 0, missed, out)
+
+
+def want_score_cases(pts: np.ndarray, shape: tuple[int, ...]) -> tuple[bool, bool, bool]:
+    """Whether the curves include ones wholly in view, ones across the edge and ones wholly beyond."""
+    n_in = in_view(pts, shape).sum(axis=-1)
+    m = pts.shape[-2]
+    return bool((n_in == m).any()), bool(((n_in > 0) & (n_in < m)).any()), bool((n_in == 0).any())
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_compiled_per_normal_agrees_with_the_numpy_reference(seed):
     """The kernel and the numpy version see the same features: curves on the object, on
@@ -330,12 +355,18 @@ def test_compiled_per_normal_agrees_with_the_numpy_reference(seed):
             # about 1e-5 grey levels), which can, rarely, decide a tie between neighbours
             close = np.isclose(g, w, rtol=1e-4, atol=1e-4)
             assert close.mean() >= 0.998, np.argwhere(~close)[:5]
-        # the curves' scores, summed in the kernel, are the sums of the per-normal terms
+        # the curves' scores, summed in the kernel, are the sums of the per-normal terms in
+        # view, each normal beyond the frame's edge counted as the mean of those in view when
+        # that is negative and as 0 otherwise; a curve wholly beyond it, as its normals read
         log_d, colour = got
-        want_score = (log_d + judge.colour_weight * colour).sum(axis=-1)
+        terms = log_d + judge.colour_weight * colour
+        assert want_score_cases(pts, ev.fimg.shape) == (True, True, True)
         got_score = observe.score(app, ev, pts, nrm, h=h, sigma=judge.sigma, threshold=judge.threshold,
                                   miss=judge.miss, colour_weight=judge.colour_weight)
-        np.testing.assert_allclose(got_score, want_score, rtol=1e-12, atol=1e-9)
+        # the curves far outside read nothing: each of their normals is a missed boundary
+        missed = terms[80].sum()
+        np.testing.assert_allclose(terms[80:85].sum(axis=-1), missed, rtol=1e-12)
+        np.testing.assert_allclose(got_score, curve_scores(terms, pts, ev.fimg.shape, missed), rtol=1e-12, atol=1e-9)
 
 
 def test_curve_scores_survive_a_product_beyond_the_float_range():

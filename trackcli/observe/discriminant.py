@@ -586,8 +586,10 @@ def score(app: Appearance, ev: FrameEvidence, points: np.ndarray, normals: np.nd
           threshold: float, miss: float, colour_weight: float) -> np.ndarray:
     """``log p(Z | X)`` (up to a constant) of every curve: ``Σ_i log D_i + w_c c_i``, shape (...).
 
-    The sum of :func:`per_normal`'s terms, computed by the compiled kernel
-    :func:`trackcli.observe.kernels.discriminant_curves` without writing them out.
+    The sum of :func:`per_normal`'s terms over the normals in view, computed by the compiled
+    kernel :func:`trackcli.observe.kernels.discriminant_curves` without writing them out; a
+    normal beyond the frame's edge counts as the mean of those in view when that is negative,
+    and as 0 otherwise (see there).
     """
     lead, args = _kernel_args(app, ev, points, normals, h=h, sigma=sigma, threshold=threshold, miss=miss)
     out = np.empty(int(np.prod(lead[:-1], dtype=np.int64)))

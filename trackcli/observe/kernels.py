@@ -116,13 +116,19 @@ def _discriminant(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale,
     for c in range(pts.shape[0] // m):
         linear = 0.0  # the curve's sum of h (lambda - lambda_in) + n_in log(lambda_in / lambda) ...
         product = 1.0  # ... and the product of q + sum_n g(nu_n) / (sqrt(2 pi) sigma lambda) ...
-        col = 0.0  # ... and of c_i
+        col = 0.0  # ... and of c_i, over its normals in view
+        n_out = 0  # normals whose base point lies beyond the frame's edge ...
+        missed = 0.0  # ... and their terms as missed boundaries (used when all are beyond it)
         for i in range(m):
             k = c * m + i
             px = pts[k, 0]
             py = pts[k, 1]
             nx = nrm[k, 0]
             ny = nrm[k, 1]
+            if not per_normal and not (px >= zero and px <= x_max and py >= zero and py <= y_max):
+                n_out += 1
+                missed += base[i] + math.log(miss)
+                continue
             # the profile at u = -u0, ..., u0 (step 1); when the segment's ends, and so all its
             # samples and their right and lower neighbours, are inside the image, without border
             # tests: coordinates first, then the pixels (float products and sums are monotone)
@@ -224,7 +230,15 @@ def _discriminant(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale,
                     product = 1.0
                 col += acc
         if not per_normal:
-            out[c] = linear + math.log(product) + colour_weight * col
+            curve = linear + math.log(product) + colour_weight * col
+            if 0 < n_out < m:
+                # beyond the frame's edge there are no data: those normals count as the mean of
+                # the normals in view when that is negative, and as nothing otherwise (a curve
+                # gains nothing by leaving the frame, and loses nothing for what it cannot see)
+                curve += n_out * min(curve / (m - n_out), 0.0)
+            elif n_out == m:
+                curve = missed
+            out[c] = curve
 
 
 def discriminant_normals(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale, inv_in, inv_out,
@@ -264,6 +278,12 @@ def discriminant_curves(fimg, cmap, pts, nrm, polarity, half, limit, threshold, 
     The arguments are those of :func:`discriminant_normals`, with the colour term's weight
     ``colour_weight``.  A curve's logarithms are taken of the product of its normals'
     ``q + Σ_n ...`` (rescaled before it overflows): one ``log`` per curve, not per normal.
+    Normals whose base point lies beyond the image are not read: each counts as the mean
+    ``log D_i + w_c c_i`` of the curve's normals in view when that is negative, and as 0
+    otherwise; a curve with no normal in view is scored as a missed boundary on every normal,
+    ``Σ_i h (λ - λ_in) + log q``.  (An object growing past the frame's edge was otherwise
+    followed by a smaller outline inside the frame, whose normals find clutter where the
+    larger one's have nothing to read.)
     """
     _discriminant(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale, inv_in, inv_out, base,
                   log_ratio_in, miss, colour_u, colour_w, colour_weight, np.empty(0), np.empty(0, np.float32), out)

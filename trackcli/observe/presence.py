@@ -79,8 +79,10 @@ class Presence:
     def confidence(self, ev: observe.FrameEvidence, pts: np.ndarray, nrm: np.ndarray, spread: float,
                    posterior_score: float | None = None, centre: float | None = None) -> tuple[float, float, float]:
         """``(confidence, log D, log-likelihood)`` of one curve, ``spread`` its positional spread in
-        object sizes; ``log D`` and the log-likelihood (:meth:`score`) are the sums over the
-        whole curve, the confidence judges the normals in the frame (:func:`observe.presence`).
+        object sizes; ``log D`` is the sum over the whole curve, the log-likelihood the curve's
+        :meth:`score` (the trackers' weight, in which a normal beyond the frame's edge counts as
+        the mean of those in view when that is negative), and the confidence judges the normals
+        in the frame (:func:`observe.presence`).
 
         ``posterior_score``, when given, is the presence score the sample set puts on the
         object (its weighted mean score per normal); the larger of it and the curve's own
@@ -93,8 +95,8 @@ class Presence:
                                            threshold=self.threshold, miss=self.miss)
         seen = observe.in_picture(pts, ev.fimg.shape, ev.area)
         s, _, _ = observe.presence_in_view(log_d, colour, seen, self.colour_weight)
-        e = float(log_d.sum())  # the whole curve's, as the trackers score it
-        total = e + self.colour_weight * float(colour.sum())
+        e = float(log_d.sum())  # the whole curve's
+        total = float(self.score(ev, pts, nrm))  # as the trackers weigh it (beyond the frame's edge: see score)
         if posterior_score is not None and math.isfinite(posterior_score):
             s = max(s, posterior_score)
         visible = min(1.0, float(seen.mean()) / self.visible_start)
