@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from trackcli.errors import DataError
-from trackcli.observe import measure
+from trackcli.observe import kernels, measure
 from trackcli.observe import discriminant as observe
 from trackcli.io.config import CondensationSettings, DynamicsSettings, MeasurementSettings, SubspaceDynamics
 from trackcli.shapes.shape_space import similarity
@@ -304,23 +304,29 @@ def in_view(pts: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
     return (pts[..., 0] >= 0) & (pts[..., 0] <= w - 1) & (pts[..., 1] >= 0) & (pts[..., 1] <= h - 1)
 
 
-def curve_scores(terms: np.ndarray, pts: np.ndarray, shape: tuple[int, ...], missed: float) -> np.ndarray:
+def curve_scores(terms: np.ndarray, pts: np.ndarray, shape: tuple[int, ...], missed: np.ndarray) -> np.ndarray:
     """Each curve's score from its normals' terms (n, M), written out: the sum over the normals
     in view, plus, per normal beyond the frame's edge, the mean of those in view when it is
-    negative; a curve with none in view, ``missed`` (every normal a missed boundary)."""
+    negative; with fewer than ``IN_VIEW_LEAST`` of its normals in view, the normals beyond
+    the edge count as ``missed`` (M,), each a missed boundary."""
     seen = in_view(pts, shape)
+    m = terms.shape[-1]
     n_in = seen.sum(axis=-1)
     total = np.where(seen, terms, 0.0).sum(axis=-1)
     mean = total / np.maximum(n_in, 1)
-    out = total + (terms.shape[-1] - n_in) * np.minimum(mean, 0.0)
-    return np.where(n_in == 0, missed, out)
+    extrapolated = total + (m - n_in) * np.minimum(mean, 0.0)
+    as_missed = total + np.where(seen, 0.0, missed).sum(axis=-1)
+    return np.where(n_in >= kernels.IN_VIEW_LEAST * m, extrapolated, as_missed)
 
 
-def want_score_cases(pts: np.ndarray, shape: tuple[int, ...]) -> tuple[bool, bool, bool]:
-    """Whether the curves include ones wholly in view, ones across the edge and ones wholly beyond."""
+def curve_kinds(pts: np.ndarray, shape: tuple[int, ...]) -> tuple[bool, bool, bool, bool]:
+    """Whether the curves include ones wholly in view, ones across the edge with enough normals
+    in view and with too few, and ones wholly beyond it."""
     n_in = in_view(pts, shape).sum(axis=-1)
     m = pts.shape[-2]
-    return bool((n_in == m).any()), bool(((n_in > 0) & (n_in < m)).any()), bool((n_in == 0).any())
+    enough = n_in >= kernels.IN_VIEW_LEAST * m
+    return (bool((n_in == m).any()), bool((enough & (n_in < m)).any()), bool((~enough & (n_in > 0)).any()),
+            bool((n_in == 0).any()))
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -360,12 +366,12 @@ def test_compiled_per_normal_agrees_with_the_numpy_reference(seed):
         # that is negative and as 0 otherwise; a curve wholly beyond it, as its normals read
         log_d, colour = got
         terms = log_d + judge.colour_weight * colour
-        assert want_score_cases(pts, ev.fimg.shape) == (True, True, True)
+        assert curve_kinds(pts, ev.fimg.shape) == (True, True, True, True)
         got_score = observe.score(app, ev, pts, nrm, h=h, sigma=judge.sigma, threshold=judge.threshold,
                                   miss=judge.miss, colour_weight=judge.colour_weight)
         # the curves far outside read nothing: each of their normals is a missed boundary
-        missed = terms[80].sum()
-        np.testing.assert_allclose(terms[80:85].sum(axis=-1), missed, rtol=1e-12)
+        missed = terms[80]
+        np.testing.assert_allclose(terms[80:85], np.broadcast_to(missed, (5, M)), rtol=1e-12)
         np.testing.assert_allclose(got_score, curve_scores(terms, pts, ev.fimg.shape, missed), rtol=1e-12, atol=1e-9)
 
 

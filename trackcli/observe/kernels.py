@@ -77,6 +77,11 @@ def _nearest_zero(flat, w, h, x, y):  # pragma: no cover - compiled
 
 _WORD = 32  # candidate maxima tested per pass (one bit each of an integer)
 
+#: a curve's normals beyond the frame's edge count as the mean of those in view only while at
+#: least this share of them is in view (the share below which the confidence is 0,
+#: :data:`trackcli.observe.discriminant.VISIBLE_NONE`); with fewer, as missed boundaries
+IN_VIEW_LEAST = 0.3
+
 
 @njit(cache=True, nogil=True, fastmath=_FAST)
 def _discriminant(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale, inv_in, inv_out, base,
@@ -231,13 +236,15 @@ def _discriminant(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale,
                 col += acc
         if not per_normal:
             curve = linear + math.log(product) + colour_weight * col
-            if 0 < n_out < m:
+            if 0 < n_out and m - n_out >= IN_VIEW_LEAST * m:
                 # beyond the frame's edge there are no data: those normals count as the mean of
                 # the normals in view when that is negative, and as nothing otherwise (a curve
                 # gains nothing by leaving the frame, and loses nothing for what it cannot see)
                 curve += n_out * min(curve / (m - n_out), 0.0)
-            elif n_out == m:
-                curve = missed
+            elif n_out > 0:
+                # mostly beyond the edge: as missed boundaries (a few normals in view on clutter
+                # would otherwise stand for the whole curve)
+                curve += missed
             out[c] = curve
 
 
@@ -280,10 +287,11 @@ def discriminant_curves(fimg, cmap, pts, nrm, polarity, half, limit, threshold, 
     ``q + Σ_n ...`` (rescaled before it overflows): one ``log`` per curve, not per normal.
     Normals whose base point lies beyond the image are not read: each counts as the mean
     ``log D_i + w_c c_i`` of the curve's normals in view when that is negative, and as 0
-    otherwise; a curve with no normal in view is scored as a missed boundary on every normal,
-    ``Σ_i h (λ - λ_in) + log q``.  (An object growing past the frame's edge was otherwise
-    followed by a smaller outline inside the frame, whose normals find clutter where the
-    larger one's have nothing to read.)
+    otherwise, while at least :data:`IN_VIEW_LEAST` of the normals are in view; with fewer,
+    each counts as a missed boundary, ``h (λ - λ_in) + log q``.  (An object growing past the
+    frame's edge was otherwise followed by a smaller outline inside the frame, whose normals
+    find clutter where the larger one's have nothing to read; and a lost outline, with a few
+    normals in view on clutter, would leave the frame.)
     """
     _discriminant(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale, inv_in, inv_out, base,
                   log_ratio_in, miss, colour_u, colour_w, colour_weight, np.empty(0), np.empty(0, np.float32), out)
