@@ -77,7 +77,8 @@ import cv2
 import numpy as np
 
 from trackcli.errors import ConfigError, DataError
-from trackcli.observe.kernels import colour_lookup, count_line_features, discriminant_curves, discriminant_normals
+from trackcli.observe.kernels import (IN_VIEW_LEAST, colour_lookup, count_line_features, discriminant_curves,
+                                      discriminant_normals)
 from trackcli.observe.measure import _as_image, _as_normals, _remap_rows, _scan_chunks
 from trackcli.observe.scene import first_light_matrix
 
@@ -627,7 +628,8 @@ def presence_in_view(log_d: np.ndarray, colour: np.ndarray, seen: np.ndarray,
 VISIBLE_FULL = 0.8
 #: ... and 0 at or below this share: half an outline beyond the frame's edge is scored by the half
 #: in view alone, and a look-alike there can score like the object; such an estimate is not held
-VISIBLE_NONE = 0.3
+#: (the same share below which the curves' scores read the normals beyond the edge as missed)
+VISIBLE_NONE = IN_VIEW_LEAST
 
 
 def in_picture(points: np.ndarray, frame_shape: tuple[int, ...],

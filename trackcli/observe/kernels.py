@@ -78,8 +78,8 @@ def _nearest_zero(flat, w, h, x, y):  # pragma: no cover - compiled
 _WORD = 32  # candidate maxima tested per pass (one bit each of an integer)
 
 #: a curve's normals beyond the frame's edge count as the mean of those in view only while at
-#: least this share of them is in view (the share below which the confidence is 0,
-#: :data:`trackcli.observe.discriminant.VISIBLE_NONE`); with fewer, as missed boundaries
+#: least this share of them is in view (the confidence's
+#: :data:`trackcli.observe.discriminant.VISIBLE_NONE` is this share); with fewer, as missed boundaries
 IN_VIEW_LEAST = 0.3
 
 
@@ -118,12 +118,13 @@ def _discriminant(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale,
     wu = uintp(w_img)
     x_max = np.float32(w_img - 1)
     y_max = np.float32(h_img - 1)
+    log_miss = math.log(miss)
     for c in range(pts.shape[0] // m):
         linear = 0.0  # the curve's sum of h (lambda - lambda_in) + n_in log(lambda_in / lambda) ...
         product = 1.0  # ... and the product of q + sum_n g(nu_n) / (sqrt(2 pi) sigma lambda) ...
         col = 0.0  # ... and of c_i, over its normals in view
         n_out = 0  # normals whose base point lies beyond the frame's edge ...
-        missed = 0.0  # ... and their terms as missed boundaries (used when all are beyond it)
+        missed = 0.0  # ... and their terms as missed boundaries (used when few are in view)
         for i in range(m):
             k = c * m + i
             px = pts[k, 0]
@@ -132,7 +133,7 @@ def _discriminant(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale,
             ny = nrm[k, 1]
             if not per_normal and not (px >= zero and px <= x_max and py >= zero and py <= y_max):
                 n_out += 1
-                missed += base[i] + math.log(miss)
+                missed += base[i] + log_miss
                 continue
             # the profile at u = -u0, ..., u0 (step 1); when the segment's ends, and so all its
             # samples and their right and lower neighbours, are inside the image, without border

@@ -656,15 +656,15 @@ def _prune(image_bgr: np.ndarray, mask: np.ndarray, box: tuple[float, float, flo
     near_colour, near_in, near_core = colour[near], inside[near], core[near]
     n_bins = PRUNE_BINS ** 3
     x0, y0, w, h = rect
+    n_core, n_out = int(near_core.sum()), int((~near_in).sum())
+    in_core = np.bincount(near_colour[near_core], minlength=n_bins)
+    outside = np.bincount(near_colour[~near_in], minlength=n_bins)
     if window > 0:
-        in_core = (np.bincount(near_colour[near_core], minlength=n_bins) + 0.5) / (int(near_core.sum()) + 0.5 * n_bins)
-        outside = (np.bincount(near_colour[~near_in], minlength=n_bins) + 0.5) / (int((~near_in).sum()) + 0.5 * n_bins)
+        ratio = np.log(((outside + 0.5) / (n_out + 0.5 * n_bins)) / ((in_core + 0.5) / (n_core + 0.5 * n_bins)))
         k = max(3, int(round(window * min(w, h)))) | 1
-        surroundings = cv2.boxFilter(np.log(outside / in_core).astype(np.float32)[colour], -1, (k, k)) > 0
+        surroundings = cv2.boxFilter(ratio.astype(np.float32)[colour], -1, (k, k)) > 0
     else:
-        in_core = np.bincount(near_colour[near_core], minlength=n_bins) / max(1, int(near_core.sum()))
-        outside = np.bincount(near_colour[~near_in], minlength=n_bins) / max(1, int((~near_in).sum()))
-        surroundings = (outside > in_core)[colour]
+        surroundings = (outside / max(1, n_out) > in_core / max(1, n_core))[colour]
     prune = inside & ~core & surroundings
     if not prune.any():
         return None
