@@ -531,7 +531,7 @@ def test_draw_finds_an_impossible_output_folder_before_segmenting(tmp_path, elli
     def never(*args, **kwargs):
         raise AssertionError("segmented although the output cannot be written")
 
-    monkeypatch.setattr(draw, "segment_box", never)
+    monkeypatch.setattr(draw, "segment_candidates", never)
     blocker = tmp_path / "a file"
     blocker.write_text("")
     line = one_line_error(run(["draw", ellipse_clip, "--box", "40,20,60,80", "-o", blocker / "t.yaml"], 4))

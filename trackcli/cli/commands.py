@@ -249,7 +249,11 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
         b = draw.parse_numbers(box, 4, "--box")
         # GrabCut takes seconds on a large frame (longer on a grey one, whose texture is segmented too)
         with _progress(click.get_current_context(), draw.segment_runs(frame.image), "segmenting the box") as bar:
-            mask_image, method = draw.segment_box(frame.image, tuple(b), with_method=True, progress=bar.update)
+            seg = draw.segment_candidates(frame.image, tuple(b), progress=bar.update)
+        mask_image, method = seg.mask, seg.method
+        if seg.method != draw.FALLBACK_METHOD and len(seg.masks) > 1:
+            mask_image, note = _confirm_mask(seg, clip, fps, frame_index, size, n_ctrl, degree)
+            method += note
         outline = draw.mask_outline(mask_image)
         source = f"box {box} ({method})"
     else:
@@ -275,6 +279,43 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
                 draw.record_template(tmps[2], frame.image, template, n_normals=n_normals)
     log.info("template %s (%d control points) from %s", out, template.n_ctrl, source)
     click.echo(f"wrote {out} and {png}" + (f" and {rrd}" if rrd else ""))
+
+
+def _confirm_mask(seg, clip, fps, frame_index: int, size: tuple[int, int], n_ctrl, degree: int):
+    """``draw --box``: the mask of ``seg`` that the frames after the drawn one hold best
+    (:func:`trackcli.run.confirm.confirm`), and what to add to the template's source about it."""
+    from trackcli.errors import VideoError
+    from trackcli.io.video import open_video
+    from trackcli.run import confirm
+    from trackcli.shapes import draw
+
+    frames = []
+    with open_video(clip, fps=fps) as video:
+        rate = video.fps
+        for i in range(frame_index, min(frame_index + confirm.CONFIRM_FRAMES, video.n_total)):
+            try:
+                frames.append(video.read(i))
+            except VideoError:  # a file's frame count is an estimate: its true end came first
+                break
+    if len(frames) < confirm.CONFIRM_LEAST:
+        return seg.mask, ""
+
+    def fit(mask):
+        return draw.fit_template(draw.mask_outline(mask), n_ctrl or draw.DEFAULT_CTRL, degree=degree, frame_size=size,
+                                 detail_ctrl=None if n_ctrl else draw.DETAIL_CTRL, _quiet=True)
+
+    masks = confirm.to_try(seg.masks, seg.chosen)
+    if len(masks) < 2:
+        return seg.mask, ""
+    with _progress(click.get_current_context(), len(masks), f"trying {len(masks)} masks on the next frames") as bar:
+        best, trials = confirm.confirm(seg.masks, seg.chosen, fit, frames, rate, progress=bar.update)
+    for t in trials:
+        log.info("mask %d of %d%s: over frames %d-%d, confidence %.3f, score %.1f (%.2f of the first frame's)",
+                 t.index + 1, len(seg.masks), " (the frame's choice)" if t.index == seg.chosen else "",
+                 frame_index + 1, frame_index + len(frames) - 1, t.confidence, t.score, t.held)
+    if best == seg.chosen:
+        return seg.mask, ""
+    return seg.masks[best], f"; the mask the next {len(frames) - 1} frames held best"
 
 
 # ---------------------------------------------------------------------------------------------

@@ -244,12 +244,33 @@ def segment_runs(image_bgr: np.ndarray) -> int:
     return 8 if is_grey(image_bgr) else 12
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class Segmentation:
+    """The masks :func:`segment_candidates` found for a box and the one it chose.
+
+    ``masks`` are uint8 masks of the frame's size (0 or 255), the candidates among which the
+    choice of :func:`segment_box` is made (those spanning the box, see there); ``chosen`` is
+    the index of that choice and ``method`` how it was found (``"GrabCut"``, or
+    :data:`FALLBACK_METHOD`, whose only mask is the ellipse inscribed in the box).
+    """
+
+    masks: tuple[np.ndarray, ...]
+    chosen: int
+    method: str
+
+    @property
+    def mask(self) -> np.ndarray:
+        """The chosen mask."""
+        return self.masks[self.chosen]
+
+
 def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *, iterations: int = 5,
                 with_method: bool = False, progress: Callable[[int], None] | None = None):
     """Segment the object inside ``box = (x, y, w, h)`` with GrabCut; returns a uint8 mask
     (with ``with_method``, ``(mask, method)``: ``"GrabCut"``, or ``"inscribed ellipse"`` when
     GrabCut found no clear object).  ``progress(1)`` is called after each of the at most
-    :func:`segment_runs` GrabCut runs (a second or more each on a large frame).
+    :func:`segment_runs` GrabCut runs (a second or more each on a large frame).  The mask is
+    :attr:`Segmentation.mask` of :func:`segment_candidates`.
 
     Everything outside the box is background.  GrabCut runs on the whole frame, and on the
     box with a ring of :data:`SEGMENT_MARGIN` times its size around it, where the background
@@ -300,6 +321,15 @@ def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *
     Each mask is cleaned:
     small specks removed by a morphological opening, holes filled, the largest region kept.
     """
+    seg = segment_candidates(image_bgr, box, iterations=iterations, progress=progress)
+    return (seg.mask, seg.method) if with_method else seg.mask
+
+
+def segment_candidates(image_bgr: np.ndarray, box: tuple[float, float, float, float], *, iterations: int = 5,
+                       progress: Callable[[int], None] | None = None) -> Segmentation:
+    """The candidate masks of :func:`segment_box` for ``box`` and its choice among them (see
+    there), for a caller that can judge them further (``draw --box`` tracks them over the
+    frames that follow, :mod:`trackcli.run.confirm`)."""
     import cv2
 
     h_img, w_img = image_bgr.shape[:2]
@@ -331,15 +361,15 @@ def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *
                         "inside it; segmenting %g,%g,%g,%g", x, y, w, h, w_img, h_img, *seg)
         p = EDGE_PAD + int(math.ceil(max(0.0, -seg[0], -seg[1], seg[0] + seg[2] - w_img, seg[1] + seg[3] - h_img)))
         big = cv2.copyMakeBorder(image_bgr, p, p, p, p, cv2.BORDER_REPLICATE)
-        mask, method = _segment(big, (seg[0] + p, seg[1] + p, seg[2], seg[3]), (x0 + p, y0 + p, x1 - x0, y1 - y0),
-                                iterations, progress)
-        mask = np.ascontiguousarray(mask[p:-p, p:-p])
+        masks, chosen, method = _segment(big, (seg[0] + p, seg[1] + p, seg[2], seg[3]),
+                                         (x0 + p, y0 + p, x1 - x0, y1 - y0), iterations, progress)
+        masks = [np.ascontiguousarray(m[p:-p, p:-p]) for m in masks]
     else:
-        mask, method = _segment(image_bgr, box, (x0, y0, x1 - x0, y1 - y0), iterations, progress)
+        masks, chosen, method = _segment(image_bgr, box, (x0, y0, x1 - x0, y1 - y0), iterations, progress)
     if method == FALLBACK_METHOD:
         log.warning("--box %g,%g,%g,%g: automatic segmentation found no clear object; using the ellipse "
                     "inscribed in the box", x, y, w, h)
-    return (mask, method) if with_method else mask
+    return Segmentation(tuple(masks), chosen, method)
 
 
 #: the method :func:`segment_box` names when GrabCut found no object
@@ -347,9 +377,9 @@ FALLBACK_METHOD = "inscribed ellipse"
 
 
 def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect: tuple[int, int, int, int],
-             iterations: int, progress: Callable[[int], None] | None = None) -> tuple[np.ndarray, str]:
-    """:func:`segment_box` of a checked box, ``rect`` its whole-pixel part inside the frame:
-    ``(mask, method)``."""
+             iterations: int, progress: Callable[[int], None] | None = None) -> tuple[list[np.ndarray], int, str]:
+    """:func:`segment_candidates` of a checked box, ``rect`` its whole-pixel part inside the
+    frame: ``(masks, chosen, method)``."""
     import cv2
 
     from trackcli.observe.discriminant import is_grey
@@ -387,7 +417,7 @@ def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect
         fallback = np.zeros((h_img, w_img), np.uint8)
         box_rr = (((x0 + x1) / 2.0, (y0 + y1) / 2.0), (float(x1 - x0), float(y1 - y0)), 0.0)
         cv2.ellipse(fallback, box_rr, 255, -1)
-        return fallback, FALLBACK_METHOD
+        return [fallback], 0, FALLBACK_METHOD
     lab = cv2.cvtColor(cv2.GaussianBlur(image_bgr, (5, 5), 0), cv2.COLOR_BGR2Lab)
     unleaked = []
     for c in list(candidates):
@@ -416,7 +446,7 @@ def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect
     best = int(np.argmax(score))
     # SEPARATION_MARGIN of 1 - BC about the whole-frame mask's BC, on the distance -ln BC
     margin = SEPARATION_MARGIN / max(1.0 - separation[0], 1e-6)
-    return (candidates[best] if score[best] > score[0] + margin else candidates[0]), "GrabCut"
+    return candidates, (best if score[best] > score[0] + margin else 0), "GrabCut"
 
 
 def _choice_score(separation: float, span: float) -> float:
