@@ -164,7 +164,9 @@ def config_check(file: str) -> None:
 @click.option("--points", help="Ordered outline points 'x1,y1 x2,y2 ...', or a file with one 'x,y' per line.")
 @click.option("--ellipse", help="Ellipse 'cx,cy,a,b[,angle]': centre, semi-axes (px), angle (degrees).")
 @click.option("--box", help="Box 'x,y,w,h' around the object: segmented automatically (GrabCut; on a grey "
-              "frame by grey level and local texture; the inscribed ellipse when no object is found).")
+              "frame by grey level and local texture; the inscribed ellipse when no object is found). On a clip, "
+              "GrabCut's other masks are also tracked over the next 14 frames, and one that is clearly better held "
+              "replaces the frame's choice (-v prints their figures).")
 @click.option("--mask", type=click.Path(), help="Binary mask image (non-zero = object), same size as the frame.")
 @click.option("--parts", "part_specs", multiple=True, metavar="NAME:x,y,w,h",
               help="A part of a structure template for --tracker coupled (repeatable, at least two), e.g. "
