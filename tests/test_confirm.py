@@ -78,7 +78,7 @@ def test_the_frames_choice_stands_when_it_is_the_object(moving):
     assert not trials[1].beats(trials[0])
 
 
-def test_a_still_object_leaves_the_frames_choice(moving):
+def test_a_still_object_leaves_the_frames_choice():
     still = scene(confirm.CONFIRM_FRAMES, 0.0)
     assert confirm.confirm(masks(), 0, fit, still, 25.0)[0] == 0
 
@@ -106,6 +106,7 @@ def test_the_rule_needs_all_three_gains():
     # a first frame with nothing to keep (held NaN) is beaten only by one that keeps something
     assert confirm.Trial(1, 0.90, 120.0, 0.5).beats(confirm.Trial(0, 0.85, 100.0, math.nan))
     assert not confirm.Trial(1, 0.90, 120.0, math.nan).beats(base)
+    assert not confirm.Trial(1, 0.90, 120.0, math.nan).beats(confirm.Trial(0, 0.85, 100.0, math.nan))
 
 
 def write_clip(path, frames: list[Frame]):
@@ -158,15 +159,31 @@ def test_draw_keeps_the_mask_the_next_frames_hold(tmp_path, moving, monkeypatch)
     assert draw.mask_iou(masks()[1], drawn) > 0.9
 
 
-def test_draw_keeps_the_frames_choice_without_frames_to_ask(tmp_path, monkeypatch):
-    """Fewer than CONFIRM_LEAST frames from the drawn one (here the last but three): no trial."""
-    clip = write_clip(tmp_path / "short.avi", scene(20, 2.5))
+@pytest.mark.parametrize("after", [confirm.CONFIRM_LEAST - 1, confirm.CONFIRM_LEAST])
+def test_draw_asks_the_next_frames_only_when_there_are_enough(tmp_path, monkeypatch, after):
+    """Fewer than CONFIRM_LEAST frames after the drawn one (near the clip's end): no trial,
+    and the frame's choice stands; with CONFIRM_LEAST of them the masks are tried on them all."""
+    n = 20
+    clip = write_clip(tmp_path / "short.avi", scene(n, 2.5))
     monkeypatch.setattr(draw, "segment_candidates", lambda image, box, **kw: draw.Segmentation(tuple(masks()), 0,
                                                                                                  "GrabCut"))
+    seen = []
+    real = confirm.trial
 
-    def never(*a, **kw):
-        raise AssertionError("tried the masks without the frames to try them on")
+    def spy(template, frames, fps, index=0):
+        if after < confirm.CONFIRM_LEAST:
+            raise AssertionError("tried the masks without the frames to try them on")
+        seen.append([f.index for f in frames])
+        return real(template, frames, fps, index)
 
-    monkeypatch.setattr(confirm, "trial", never)
-    t = draw_box(tmp_path, clip, "--frame", "16")
-    assert "held best" not in t.source
+    monkeypatch.setattr(confirm, "trial", spy)
+    t = draw_box(tmp_path, clip, "--frame", str(n - 1 - after))
+    if after < confirm.CONFIRM_LEAST:
+        assert "held best" not in t.source
+    else:
+        assert seen == [list(range(n - 1 - after, n))] * 2  # both masks, the drawn frame and the 8 after it
+
+
+def test_a_trial_needs_a_frame_after_the_drawn_one(moving):
+    with pytest.raises(ValueError):
+        confirm.trial(fit(masks()[1]), moving[:1], 25.0)

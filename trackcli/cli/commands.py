@@ -237,6 +237,7 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
     check_output_folders(out, png, rrd)
     with open_video(clip, fps=fps) as video:
         frame = video.read(frame_index)
+        rate = video.fps
     size = (frame.image.shape[1], frame.image.shape[0])
     draw.check_frame_size(size, str(clip))
     if points:
@@ -254,16 +255,15 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
             seg = draw.segment_candidates(frame.image, tuple(b), progress=bar.update)
         mask_image, method = seg.mask, seg.method
         if seg.method != draw.FALLBACK_METHOD and len(seg.masks) > 1:
-            mask_image, note = _confirm_mask(seg, clip, fps, frame_index, size, n_ctrl, degree)
+            mask_image, note = _confirm_mask(seg, clip, rate, frame, lambda o, **kw: _fit_outline(o, n_ctrl, degree, size, **kw))
             method += note
         outline = draw.mask_outline(mask_image)
         source = f"box {box} ({method})"
     else:
         outline = draw.mask_outline(draw.load_mask(mask, size))
         source = f"mask {mask}"
-    template = draw.fit_template(outline, n_ctrl or draw.DEFAULT_CTRL, degree=degree, closed=not open_curve,
-                                 clip=str(clip), frame=frame_index, frame_size=size, source=source,
-                                 detail_ctrl=None if n_ctrl else draw.DETAIL_CTRL)
+    template = _fit_outline(outline, n_ctrl, degree, size, closed=not open_curve, clip=str(clip), frame=frame_index,
+                            source=source)
     if box:
         template = dataclasses.replace(template, box=tuple(b))
     if specs:
@@ -283,38 +283,42 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
     click.echo(f"wrote {out} and {png}" + (f" and {rrd}" if rrd else ""))
 
 
-def _confirm_mask(seg, clip, fps, frame_index: int, size: tuple[int, int], n_ctrl, degree: int):
-    """``draw --box``: the mask of ``seg`` that the frames after the drawn one hold best
-    (:func:`trackcli.run.confirm.confirm`), and what to add to the template's source about it."""
+def _fit_outline(outline, n_ctrl, degree: int, size: tuple[int, int], **kw):
+    """``draw``'s B-spline fit of ``outline`` (the written template and ``--box``'s trial ones alike)."""
+    from trackcli.shapes import draw
+
+    return draw.fit_template(outline, n_ctrl or draw.DEFAULT_CTRL, degree=degree, frame_size=size,
+                             detail_ctrl=None if n_ctrl else draw.DETAIL_CTRL, **kw)
+
+
+def _confirm_mask(seg, clip, fps: float, frame, fit):
+    """``draw --box``: the mask of ``seg`` that the frames after the drawn one (``frame``, of
+    ``clip`` read at ``fps``) hold best (:func:`trackcli.run.confirm.confirm`), and what to add
+    to the template's source about it.  ``fit(outline)`` makes a template as ``draw`` does."""
     from trackcli.errors import VideoError
     from trackcli.io.video import open_video
     from trackcli.run import confirm
     from trackcli.shapes import draw
 
-    frames = []
+    masks = confirm.to_try(seg.masks, seg.chosen)
+    if len(masks) < 2:
+        return seg.mask, ""
+    frames = [frame]
     with open_video(clip, fps=fps) as video:
-        rate = video.fps
-        for i in range(frame_index, min(frame_index + confirm.CONFIRM_FRAMES, video.n_total)):
+        for i in range(frame.index + 1, min(frame.index + confirm.CONFIRM_FRAMES, video.n_total)):
             try:
                 frames.append(video.read(i))
             except VideoError:  # a file's frame count is an estimate: its true end came first
                 break
-    if len(frames) < confirm.CONFIRM_LEAST:
-        return seg.mask, ""
-
-    def fit(mask):
-        return draw.fit_template(draw.mask_outline(mask), n_ctrl or draw.DEFAULT_CTRL, degree=degree, frame_size=size,
-                                 detail_ctrl=None if n_ctrl else draw.DETAIL_CTRL, _quiet=True)
-
-    masks = confirm.to_try(seg.masks, seg.chosen)
-    if len(masks) < 2:
+    if len(frames) - 1 < confirm.CONFIRM_LEAST:
         return seg.mask, ""
     with _progress(click.get_current_context(), len(masks), f"trying {len(masks)} masks on the next frames") as bar:
-        best, trials = confirm.confirm(seg.masks, seg.chosen, fit, frames, rate, progress=bar.update)
+        best, trials = confirm.confirm(seg.masks, seg.chosen, lambda m: fit(draw.mask_outline(m), _quiet=True),
+                                       frames, fps, progress=bar.update, tried=masks)
     for t in trials:
         log.info("mask %d of %d%s: over frames %d-%d, confidence %.3f, score %.1f (%.2f of the first frame's)",
                  t.index + 1, len(seg.masks), " (the frame's choice)" if t.index == seg.chosen else "",
-                 frame_index + 1, frame_index + len(frames) - 1, t.confidence, t.score, t.held)
+                 frame.index + 1, frame.index + len(frames) - 1, t.confidence, t.score, t.held)
     if best == seg.chosen:
         return seg.mask, ""
     return seg.masks[best], f"; the mask the next {len(frames) - 1} frames held best"
