@@ -66,26 +66,26 @@ def moving() -> list[Frame]:
 
 
 def test_the_mask_without_the_still_panel_is_taken_when_the_object_moves(moving):
-    best, trials = confirm.confirm(masks(), 0, fit, moving, 25.0)
+    best, trials = confirm.confirm(masks(), confirm.to_try(masks(), 0), fit, moving, 25.0)
     assert best == 1
     assert [t.index for t in trials] == [0, 1]
     assert trials[1].beats(trials[0])
 
 
 def test_the_frames_choice_stands_when_it_is_the_object(moving):
-    best, trials = confirm.confirm(masks(), 1, fit, moving, 25.0)
+    best, trials = confirm.confirm(masks(), confirm.to_try(masks(), 1), fit, moving, 25.0)
     assert best == 1
     assert not trials[1].beats(trials[0])
 
 
 def test_a_still_object_leaves_the_frames_choice():
     still = scene(confirm.CONFIRM_FRAMES, 0.0)
-    assert confirm.confirm(masks(), 0, fit, still, 25.0)[0] == 0
+    assert confirm.confirm(masks(), confirm.to_try(masks(), 0), fit, still, 25.0)[0] == 0
 
 
 def test_the_choice_is_the_same_on_every_run(moving):
-    a = confirm.confirm(masks(), 0, fit, moving, 25.0)[1]
-    b = confirm.confirm(masks(), 0, fit, moving, 25.0)[1]
+    a = confirm.confirm(masks(), confirm.to_try(masks(), 0), fit, moving, 25.0)[1]
+    b = confirm.confirm(masks(), confirm.to_try(masks(), 0), fit, moving, 25.0)[1]
     assert a == b
 
 
@@ -144,9 +144,9 @@ def test_draw_keeps_the_mask_the_next_frames_hold(tmp_path, moving, monkeypatch)
 
     real = confirm.confirm
 
-    def spy(ms, chosen, fit, frames, fps, **kw):
+    def spy(ms, order, fit, frames, fps, **kw):
         seen.update(n=len(frames), first=frames[0].index, fps=fps)
-        return real(ms, chosen, fit, frames, fps, **kw)
+        return real(ms, order, fit, frames, fps, **kw)
 
     monkeypatch.setattr(draw, "segment_candidates", segment)
     monkeypatch.setattr(confirm, "confirm", spy)

@@ -286,17 +286,18 @@ def test_box_without_an_object_falls_back_to_the_inscribed_ellipse(caplog):
     inscribed = draw.polygon_mask(draw.ellipse_outline(70.0, 55.0, 30.0, 25.0), (160, 120))
     assert draw.mask_iou(mask, inscribed) >= 0.95
     # and says so, for the template's source
-    again, method = draw.segment_box(img, (40.0, 30.0, 60.0, 50.0), with_method=True)
+    seg = draw.segment_candidates(img, (40.0, 30.0, 60.0, 50.0))
+    again, method = seg.mask, seg.method
     np.testing.assert_array_equal(again, mask)
     assert method == "inscribed ellipse"
     img, outline = dark_ellipse_image(np.random.default_rng(6))
-    assert draw.segment_box(img, grown_box(outline, 0.15), with_method=True)[1] == "GrabCut"
+    assert draw.segment_candidates(img, grown_box(outline, 0.15)).method == "GrabCut"
 
 
 def test_the_fallback_warning_names_the_box_as_given_when_it_reaches_the_frames_edge(caplog):
     img = np.full((120, 160, 3), 128, np.uint8)  # padded at the edge before segmenting
     with caplog.at_level(logging.WARNING, logger="trackcli.shapes.draw"):
-        _, method = draw.segment_box(img, (-20.0, -20.0, 60.0, 60.0), with_method=True)
+        method = draw.segment_candidates(img, (-20.0, -20.0, 60.0, 60.0)).method
     assert method == "inscribed ellipse"
     assert "--box -20,-20,60,60: automatic segmentation found no clear object" in caplog.text
 

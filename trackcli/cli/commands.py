@@ -235,9 +235,9 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
     refuse_overwriting_inputs({"-o/--output": out, "--preview": png, "--rrd": rrd},
                               {"CLIP": clip, "--mask": mask, "--points": points_file})
     check_output_folders(out, png, rrd)
-    with open_video(clip, fps=fps) as video:
-        frame = video.read(frame_index)
-        rate = video.fps
+    # kept open until the command ends: --box reads on from the drawn frame to try its masks
+    video = click.get_current_context().with_resource(open_video(clip, fps=fps))
+    frame = video.read(frame_index)
     size = (frame.image.shape[1], frame.image.shape[0])
     draw.check_frame_size(size, str(clip))
     if points:
@@ -253,12 +253,10 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
         # GrabCut takes seconds on a large frame (longer on a grey one, whose texture is segmented too)
         with _progress(click.get_current_context(), draw.segment_runs(frame.image), "segmenting the box") as bar:
             seg = draw.segment_candidates(frame.image, tuple(b), progress=bar.update)
-        mask_image, method = seg.mask, seg.method
-        if seg.method != draw.FALLBACK_METHOD and len(seg.masks) > 1:
-            mask_image, note = _confirm_mask(seg, clip, rate, frame, lambda o, **kw: _fit_outline(o, n_ctrl, degree, size, **kw))
-            method += note
+        mask_image, note = _confirm_mask(seg, video, frame, lambda m: _fit_outline(draw.mask_outline(m), n_ctrl,
+                                                                                    degree, size, _quiet=True))
         outline = draw.mask_outline(mask_image)
-        source = f"box {box} ({method})"
+        source = f"box {box} ({seg.method}{note})"
     else:
         outline = draw.mask_outline(draw.load_mask(mask, size))
         source = f"mask {mask}"
@@ -291,30 +289,26 @@ def _fit_outline(outline, n_ctrl, degree: int, size: tuple[int, int], **kw):
                              detail_ctrl=None if n_ctrl else draw.DETAIL_CTRL, **kw)
 
 
-def _confirm_mask(seg, clip, fps: float, frame, fit):
-    """``draw --box``: the mask of ``seg`` that the frames after the drawn one (``frame``, of
-    ``clip`` read at ``fps``) hold best (:func:`trackcli.run.confirm.confirm`), and what to add
-    to the template's source about it.  ``fit(outline)`` makes a template as ``draw`` does."""
+def _confirm_mask(seg, video, frame, fit):
+    """``draw --box``: the mask of ``seg`` that the frames of ``video`` after the drawn one
+    (``frame``) hold best (:func:`trackcli.run.confirm.confirm`), and what to add to the
+    template's source about it.  ``fit(mask)`` makes a template as ``draw`` does."""
     from trackcli.errors import VideoError
-    from trackcli.io.video import open_video
     from trackcli.run import confirm
-    from trackcli.shapes import draw
 
-    masks = confirm.to_try(seg.masks, seg.chosen)
-    if len(masks) < 2:
+    order = confirm.to_try(seg.masks, seg.chosen)
+    if len(order) < 2:  # one mask (or the inscribed ellipse): nothing to choose
         return seg.mask, ""
     frames = [frame]
-    with open_video(clip, fps=fps) as video:
-        for i in range(frame.index + 1, min(frame.index + confirm.CONFIRM_FRAMES, video.n_total)):
-            try:
-                frames.append(video.read(i))
-            except VideoError:  # a file's frame count is an estimate: its true end came first
-                break
+    for i in range(frame.index + 1, min(frame.index + confirm.CONFIRM_FRAMES, video.n_total)):
+        try:
+            frames.append(video.read(i))
+        except VideoError:  # a file's frame count is an estimate: its true end came first
+            break
     if len(frames) - 1 < confirm.CONFIRM_LEAST:
         return seg.mask, ""
-    with _progress(click.get_current_context(), len(masks), f"trying {len(masks)} masks on the next frames") as bar:
-        best, trials = confirm.confirm(seg.masks, seg.chosen, lambda m: fit(draw.mask_outline(m), _quiet=True),
-                                       frames, fps, progress=bar.update, tried=masks)
+    with _progress(click.get_current_context(), len(order), f"trying {len(order)} masks on the next frames") as bar:
+        best, trials = confirm.confirm(seg.masks, order, fit, frames, video.fps, progress=bar.update)
     for t in trials:
         log.info("mask %d of %d%s: over frames %d-%d, confidence %.3f, score %.1f (%.2f of the first frame's)",
                  t.index + 1, len(seg.masks), " (the frame's choice)" if t.index == seg.chosen else "",

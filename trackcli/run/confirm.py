@@ -125,23 +125,23 @@ def to_try(masks: Sequence[np.ndarray], chosen: int) -> list[int]:
     return kept
 
 
-def confirm(masks: Sequence[np.ndarray], chosen: int, fit: Callable[[np.ndarray], Any], frames: Sequence[Any],
-            fps: float, *, progress: Callable[[int], None] | None = None,
-            tried: Sequence[int] | None = None) -> tuple[int, list[Trial]]:
-    """The mask to keep of ``masks``: ``chosen`` (the frame's own choice) unless another of
-    :func:`to_try` is clearly better held over ``frames`` (the drawn frame first; see the
-    module).
+def confirm(masks: Sequence[np.ndarray], order: Sequence[int], fit: Callable[[np.ndarray], Any],
+            frames: Sequence[Any], fps: float, *,
+            progress: Callable[[int], None] | None = None) -> tuple[int, list[Trial]]:
+    """The mask to keep of ``masks``: ``order[0]`` (the frame's own choice) unless another of
+    ``order`` (:func:`to_try`) is clearly better held over ``frames`` (the drawn frame first;
+    see the module).
 
     ``fit(mask)`` makes a candidate's template as ``draw`` would.  A mask whose template
     cannot be fitted or tracked (``DataError``, ``TemplateError``: a degenerate outline) is
     not tried.  Returns ``(index, trials)``, the trials in the order made (the chosen mask's
-    first, when it could be tried).  ``progress(1)`` is called after each mask of
-    :func:`to_try` (``tried``, when the caller has it already).
+    first, when it could be tried).  ``progress(1)`` is called after each mask of ``order``.
     """
     from trackcli.errors import DataError, TemplateError
 
+    chosen = order[0]
     trials: list[Trial] = []
-    for i in to_try(masks, chosen) if tried is None else tried:
+    for i in order:
         try:
             trials.append(trial(fit(masks[i]), frames, fps, i))
         except (DataError, TemplateError):

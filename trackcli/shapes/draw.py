@@ -265,10 +265,10 @@ class Segmentation:
 
 
 def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *, iterations: int = 5,
-                with_method: bool = False, progress: Callable[[int], None] | None = None):
+                progress: Callable[[int], None] | None = None) -> np.ndarray:
     """Segment the object inside ``box = (x, y, w, h)`` with GrabCut; returns a uint8 mask
-    (with ``with_method``, ``(mask, method)``: ``"GrabCut"``, or ``"inscribed ellipse"`` when
-    GrabCut found no clear object).  ``progress(1)`` is called after each of the at most
+    (the ellipse inscribed in the box when GrabCut found no clear object, see
+    :attr:`Segmentation.method`).  ``progress(1)`` is called after each of the at most
     :func:`segment_runs` GrabCut runs (a second or more each on a large frame).  The mask is
     :attr:`Segmentation.mask` of :func:`segment_candidates`.
 
@@ -321,8 +321,7 @@ def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *
     Each mask is cleaned:
     small specks removed by a morphological opening, holes filled, the largest region kept.
     """
-    seg = segment_candidates(image_bgr, box, iterations=iterations, progress=progress)
-    return (seg.mask, seg.method) if with_method else seg.mask
+    return segment_candidates(image_bgr, box, iterations=iterations, progress=progress).mask
 
 
 def segment_candidates(image_bgr: np.ndarray, box: tuple[float, float, float, float], *, iterations: int = 5,
