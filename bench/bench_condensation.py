@@ -22,6 +22,12 @@ With more than one thread count, a second table times the weighting alone
 part of the step the threads share) with each count: the speed-up the threads give where
 nothing is serial.
 
+``--floor`` times, on the same curves, a compiled loop that does nothing but read each
+normal's profile (the 34 bilinear samples of the ±15 px search, coordinates first and pixels
+in a second loop as in the kernel, the sums kept in one slot per sample so that no add waits
+for another), and the same with one pixel per sample: the cost of the reads alone, which any
+likelihood of this kind pays, against the whole likelihood (``x floor``).
+
 ``--ceiling`` then runs the one-thread step in two processes at once, each held to its own
 CPU, sharing nothing: the step time each of them gets, and the speed-up two processes give
 over one (four times the one-thread step over the sum of theirs).  That is the most a second
@@ -32,7 +38,8 @@ Usage::
 
     python bench/bench_condensation.py [--frames 40] [--sizes 100,300,1000,3000,10000]
                                        [--normals 24] [--curves matrix|trackcli] [--repeat 3]
-                                       [--threads 1,2] [--likelihood discriminant|clutter] [--ceiling]
+                                       [--threads 1,2] [--likelihood discriminant|clutter] [--floor]
+                                       [--ceiling]
 """
 
 from __future__ import annotations
@@ -52,6 +59,7 @@ from types import SimpleNamespace  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
+from numba import njit, uintp  # noqa: E402
 
 from trackcli.trackers import condensation  # noqa: E402
 from trackcli.observe import discriminant, measure  # noqa: E402
@@ -292,6 +300,9 @@ def main() -> None:
                         help="curve evaluation: this script's matrix product, or trackcli's spline + shape-space")
     parser.add_argument("--likelihood", choices=("discriminant", "clutter"), default="discriminant",
                         help="observation model: the default contour discriminant with colour, or AC eq 12.2")
+    parser.add_argument("--floor", action="store_true",
+                        help="also time, on the same curves, loops that only read each normal's profile: how far "
+                             "the likelihood is from the cost of its memory reads")
     parser.add_argument("--ceiling", action="store_true",
                         help="also run the one-thread step in two processes at once, one per CPU: the most two "
                              "threads can gain on this machine")
@@ -347,6 +358,8 @@ def main() -> None:
                   f"{speed:>8} {r['error']:>7.1f}")
     if len(thread_counts) > 1:
         scoring(sizes, thread_counts, args, fimgs, model, score)
+    if args.floor:
+        floor(sizes, args, fimgs, model, score)
     if args.ceiling:
         ceiling(sizes, args, frames, fimgs, model, dyn, score, {n: rows[1, n] for n in sizes if (1, n) in rows})
 
@@ -384,6 +397,89 @@ def scoring(sizes, thread_counts, args, fimgs, model, score) -> None:
         for n in sizes:
             print(f"{t:>3} {n:>6} {best[t, n]:>9.2f} {1e6 * best[t, n] / n:>7.0f} "
                   f"{best[thread_counts[0], n] / best[t, n]:>9.2f}")
+
+
+@njit(cache=False, nogil=True, fastmath={"contract"})
+def _profile_reads(fimg, pts, nrm, n_prof, bilinear):  # pragma: no cover - compiled
+    """The sum of every normal's ``n_prof`` profile samples (step 1 along the normal, centred on
+    its base point), read bilinearly or at the pixel below and left: nothing else of the
+    likelihood, so its time is what reading the profiles costs at the least.  As in the
+    kernel, the coordinates first and the pixels in a second loop, unsigned indices (no
+    wrap-around test); the sums go to one slot per sample, so no add waits for another."""
+    w = uintp(fimg.shape[1])
+    flat = fimg.reshape(-1)
+    u0 = np.float32(n_prof / 2 - 0.5)
+    one = np.float32(1.0)
+    idx = np.empty(n_prof, np.uint32)
+    ax = np.empty(n_prof, np.float32)
+    ay = np.empty(n_prof, np.float32)
+    acc = np.zeros(n_prof, np.float32)
+    for k in range(pts.shape[0]):
+        px, py, nx, ny = pts[k, 0], pts[k, 1], nrm[k, 0], nrm[k, 1]
+        for j in range(n_prof):
+            u = np.float32(j) - u0
+            x = nx * u + px
+            y = ny * u + py
+            ix = np.int32(x)
+            iy = np.int32(y)
+            ax[j] = x - np.float32(ix)
+            ay[j] = y - np.float32(iy)
+            idx[j] = iy * np.int32(w) + ix
+        if bilinear:
+            for j in range(n_prof):
+                r0 = uintp(idx[j])
+                a = ax[j]
+                b = ay[j]
+                top = flat[r0] * (one - a) + flat[r0 + uintp(1)] * a
+                bottom = flat[r0 + w] * (one - a) + flat[r0 + w + uintp(1)] * a
+                acc[j] += top * (one - b) + bottom * b
+        else:
+            for j in range(n_prof):
+                acc[j] += flat[uintp(idx[j])]
+    return acc.sum()
+
+
+def floor(sizes, args, fimgs, model, score) -> None:
+    """The likelihood of N curves against loops that only read their profiles (34 samples per
+    normal, as the default model's ±15 px search reads): the lower bound of any likelihood that
+    reads the feature image along every normal, on this machine."""
+    n_prof = 2 * 15 + 4
+    rng = np.random.default_rng(0)
+    lo, hi = np.float32(n_prof), np.float32(min(WIDTH, HEIGHT) - n_prof)
+    for n in sizes:
+        curves_of = []
+        for k in range(len(fimgs)):
+            x = np.zeros((n, 6))
+            x[:, :2] = TRUTH[k] - (320, 240) + rng.normal(0, 10, (n, 2))
+            pts, nrm = model.evaluate(x)
+            nrm32 = np.ascontiguousarray(nrm.reshape(-1, 2), dtype=np.float32)
+            inside = np.clip(pts.reshape(-1, 2), lo, hi).astype(np.float32)  # the reads stay inside the frame
+            curves_of.append((pts, nrm, nrm32, inside))
+        fimg32 = [np.ascontiguousarray(f, dtype=np.float32) for f in fimgs]
+        for bilinear in (True, False):  # compile
+            _profile_reads(fimg32[0], curves_of[0][3], curves_of[0][2], n_prof, bilinear)
+        best = {"likelihood": math.inf, "bilinear": math.inf, "nearest": math.inf}
+        for _ in range(args.repeat):
+            for name in best:
+                times = []
+                for k, (pts, nrm, nrm32, inside) in enumerate(curves_of):
+                    t0 = time.perf_counter()
+                    if name == "likelihood":
+                        likelihood(score, fimgs, k, pts, nrm)
+                    else:
+                        _profile_reads(fimg32[k], inside, nrm32, n_prof, name == "bilinear")
+                    times.append(time.perf_counter() - t0)
+                best[name] = min(best[name], 1e3 * float(np.median(times)))
+        reads = n * args.normals * n_prof
+        print(f"\nN = {n}, one thread: {reads} profile samples (load average {os.getloadavg()[0]:.2f})")
+        header = f"{'':>34} {'ms':>7} {'ns/read':>8} {'x floor':>8}"
+        print(header)
+        print("-" * len(header))
+        for name, label in (("likelihood", "the likelihood (whole)"),
+                            ("bilinear", "profile reads only, bilinear"),
+                            ("nearest", "profile reads only, one pixel")):
+            print(f"{label:>34} {best[name]:>7.2f} {1e6 * best[name] / reads:>8.2f} "
+                  f"{best[name] / best['bilinear']:>8.2f}")
 
 
 def _paired(cpu, barrier, results, sizes, args, frames, fimgs, model, dyn, score) -> None:
