@@ -23,9 +23,8 @@ part of the step the threads share) with each count: the speed-up the threads gi
 nothing is serial.
 
 ``--floor`` times, on the same curves, a compiled loop that does nothing but read each
-normal's profile (the 34 bilinear samples of the ±15 px search, coordinates first and pixels
-in a second loop as in the kernel, the sums kept in one slot per sample so that no add waits
-for another), and the same with one pixel per sample: the cost of the reads alone, which any
+normal's profile (the 34 bilinear samples of the ±15 px search, read by the kernel's own
+loop, the sums kept in one slot per sample so that no add waits for another), and the same with one pixel per sample: the cost of the reads alone, which any
 likelihood of this kind pays, against the whole likelihood (``x floor``).
 
 ``--ceiling`` then runs the one-thread step in two processes at once, each held to its own
@@ -63,6 +62,7 @@ from numba import njit, uintp  # noqa: E402
 
 from trackcli.trackers import condensation  # noqa: E402
 from trackcli.observe import discriminant, measure  # noqa: E402
+from trackcli.observe.kernels import _profile_inside  # noqa: E402
 
 WIDTH, HEIGHT = 640, 480
 TAU = 0.04
@@ -402,40 +402,28 @@ def scoring(sizes, thread_counts, args, fimgs, model, score) -> None:
 @njit(cache=False, nogil=True, fastmath={"contract"})
 def _profile_reads(fimg, pts, nrm, n_prof, bilinear):  # pragma: no cover - compiled
     """The sum of every normal's ``n_prof`` profile samples (step 1 along the normal, centred on
-    its base point), read bilinearly or at the pixel below and left: nothing else of the
-    likelihood, so its time is what reading the profiles costs at the least.  As in the
-    kernel, the coordinates first and the pixels in a second loop, unsigned indices (no
-    wrap-around test); the sums go to one slot per sample, so no add waits for another."""
-    w = uintp(fimg.shape[1])
+    its base point), read bilinearly by the kernel's own loop (``kernels._profile_inside``) or
+    at the pixel below and left: nothing else of the likelihood, so its time is what reading
+    the profiles costs at the least.  The sums go to one slot per sample, so that no add waits
+    for another."""
+    w = fimg.shape[1]
     flat = fimg.reshape(-1)
     u0 = np.float32(n_prof / 2 - 0.5)
-    one = np.float32(1.0)
     idx = np.empty(n_prof, np.uint32)
     ax = np.empty(n_prof, np.float32)
     ay = np.empty(n_prof, np.float32)
+    prof = np.empty(n_prof, np.float32)
     acc = np.zeros(n_prof, np.float32)
     for k in range(pts.shape[0]):
         px, py, nx, ny = pts[k, 0], pts[k, 1], nrm[k, 0], nrm[k, 1]
-        for j in range(n_prof):
-            u = np.float32(j) - u0
-            x = nx * u + px
-            y = ny * u + py
-            ix = np.int32(x)
-            iy = np.int32(y)
-            ax[j] = x - np.float32(ix)
-            ay[j] = y - np.float32(iy)
-            idx[j] = iy * np.int32(w) + ix
         if bilinear:
-            for j in range(n_prof):
-                r0 = uintp(idx[j])
-                a = ax[j]
-                b = ay[j]
-                top = flat[r0] * (one - a) + flat[r0 + uintp(1)] * a
-                bottom = flat[r0 + w] * (one - a) + flat[r0 + w + uintp(1)] * a
-                acc[j] += top * (one - b) + bottom * b
+            _profile_inside(flat, w, px, py, nx, ny, u0, idx, ax, ay, prof)
         else:
             for j in range(n_prof):
-                acc[j] += flat[uintp(idx[j])]
+                u = np.float32(j) - u0
+                prof[j] = flat[uintp(np.int32(ny * u + py) * np.int32(w) + np.int32(nx * u + px))]
+        for j in range(n_prof):
+            acc[j] += prof[j]
     return acc.sum()
 
 

@@ -75,6 +75,33 @@ def _nearest_zero(flat, w, h, x, y):  # pragma: no cover - compiled
     return np.float32(0.0)
 
 
+@njit(cache=True, nogil=True, inline="always", fastmath=_FAST)
+def _profile_inside(flat, w_img, px, py, nx, ny, u0, idx, ax, ay, prof):  # pragma: no cover - compiled
+    """``prof[j]``, the image (flattened, ``w_img`` wide) at ``(px, py) + (j - u0) (nx, ny)``,
+    bilinear, for a segment whose samples and their right and lower neighbours all lie inside
+    the image: no border tests, the coordinates first (into ``idx``, ``ax``, ``ay``) and the
+    pixels in a second loop, with unsigned indices."""
+    n_prof = prof.shape[0]
+    for j in range(n_prof):
+        u = np.float32(j) - u0
+        x = nx * u + px
+        y = ny * u + py
+        ix = np.int32(x)
+        iy = np.int32(y)
+        ax[j] = x - np.float32(ix)
+        ay[j] = y - np.float32(iy)
+        idx[j] = iy * np.int32(w_img) + ix
+    wu = uintp(w_img)
+    one = np.float32(1.0)
+    for j in range(n_prof):
+        r0 = uintp(idx[j])
+        a = ax[j]
+        b = ay[j]
+        top = flat[r0] * (one - a) + flat[r0 + uintp(1)] * a
+        bottom = flat[r0 + wu] * (one - a) + flat[r0 + wu + uintp(1)] * a
+        prof[j] = top * (one - b) + bottom * b
+
+
 _WORD = 32  # candidate maxima tested per pass (one bit each of an integer)
 
 #: a curve's normals beyond the frame's edge count as the mean of those in view only while at
@@ -114,8 +141,6 @@ def _discriminant(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale,
     s = np.zeros(d.shape[0], np.float32)
     two = np.float32(2.0)
     zero = np.float32(0.0)
-    one = np.float32(1.0)
-    wu = uintp(w_img)
     x_max = np.float32(w_img - 1)
     y_max = np.float32(h_img - 1)
     log_miss = math.log(miss)
@@ -143,22 +168,7 @@ def _discriminant(fimg, cmap, pts, nrm, polarity, half, limit, threshold, scale,
             ya = py - ny * u0
             yb = py + ny * u0
             if min(xa, xb) >= zero and max(xa, xb) < x_max and min(ya, yb) >= zero and max(ya, yb) < y_max:
-                for j in range(n_prof):
-                    u = np.float32(j) - u0
-                    x = nx * u + px
-                    y = ny * u + py
-                    ix = np.int32(x)
-                    iy = np.int32(y)
-                    ax[j] = x - np.float32(ix)
-                    ay[j] = y - np.float32(iy)
-                    idx[j] = iy * np.int32(w_img) + ix
-                for j in range(n_prof):
-                    r0 = uintp(idx[j])
-                    a = ax[j]
-                    b = ay[j]
-                    top = flat[r0] * (one - a) + flat[r0 + uintp(1)] * a
-                    bottom = flat[r0 + wu] * (one - a) + flat[r0 + wu + uintp(1)] * a
-                    prof[j] = top * (one - b) + bottom * b
+                _profile_inside(flat, w_img, px, py, nx, ny, u0, idx, ax, ay, prof)
             else:
                 for j in range(n_prof):
                     u = np.float32(j) - u0
