@@ -221,6 +221,15 @@ class EMSettings:
 
 
 @dataclass(frozen=True)
+class OutlineSettings:
+    refine: bool = _f(True, "bool", "fit each frame's outline again in the full image, from pixel-wise colour posteriors with the "
+                      "tracker's estimate as the prior (trackcli.observe.region); false: the outline is the estimate's curve")
+    prior_width: float = _f(0.5, "float", "how far (in object sizes) the refined outline may leave the prior before the prior's "
+                            "log-odds fall by 1", lo=0.01, hi=5)
+    flow: bool = _f(True, "bool", "add the last refined outline moved by the dense optical flow (DIS) as a second prior")
+
+
+@dataclass(frozen=True)
 class OutputSettings:
     rrd: bool = _f(True, "bool", "write a Rerun recording (.rrd)")
     jpeg_quality: int = _f(80, "int", "JPEG quality of frames encoded for recordings (frames kept as their source's JPEG are not encoded again)", lo=10, hi=100)
@@ -264,6 +273,7 @@ class Settings:
     coupled: CoupledSettings = _section(CoupledSettings, "coupled structures (--tracker coupled; 003): a centre and rays to parts matched by normalised cross-correlation")
     placement: PlacementSettings = _section(PlacementSettings, "a learned model tracking a clip (track --model)")
     learning: LearningSettings = _section(LearningSettings, "learning dynamics")
+    outline: OutlineSettings = _section(OutlineSettings, "the drawn outline: refined in the full image after each frame's estimate")
     output: OutputSettings = _section(OutputSettings, "outputs")
     em: EMSettings = _section(EMSettings, "learning dynamics by EM (learn --method em)")
 

@@ -227,7 +227,13 @@ class OutlineColumns:
     def header(self) -> list[str]:
         return outline_header(self.n_points)
 
-    def cells(self, X: np.ndarray) -> list[str]:
+    def cells(self, X: np.ndarray, refined: np.ndarray | None = None) -> list[str]:
+        """The row's outline cells: of ``X``'s curve, or of the ``refined`` outline when given
+        (resampled to ``n_points`` equally spaced points)."""
+        if refined is not None and self.space.basis.closed:
+            from trackcli.observe.region import resample_closed
+
+            return ["1", *_fmt_all(resample_closed(refined, self.n_points), 3)]
         pts = self.points(X)
         return ["1" if self.space.basis.closed else "0", *_fmt_all(pts, 3)]
 
@@ -263,7 +269,7 @@ class TrackWriter:
         if self._extra:
             cells += [_fmt(float(result.extra.get(e, math.nan)), 6) for e in self._extra]
         if self._outline is not None:
-            cells += self._outline.cells(result.X)
+            cells += self._outline.cells(result.X, getattr(result, "outline", None))
         self._csv.writerow(cells)
 
     def __enter__(self) -> "TrackWriter":

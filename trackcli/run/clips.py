@@ -45,6 +45,7 @@ ESTIMATE_RGB = (255, 60, 40)
 GATE_RGB = (255, 210, 0)
 FEATURE_RGB = (0, 200, 255)
 SMOOTHED_RGB = (255, 0, 255)
+OUTLINE_RGB = (60, 255, 60)
 
 
 @dataclass(frozen=True)
@@ -326,6 +327,8 @@ def _record_frame(rec: Any, log_frame: Any, frame: Any, r: Any) -> None:
     if "features" in d and len(d["features"]):
         rec.log_points("video/features", d["features"], colors=FEATURE_RGB, radii=2.0)
     rec.log_contour("video/estimate", r.contour, color=ESTIMATE_RGB, width=2.0)
+    if getattr(r, "outline", None) is not None:
+        rec.log_contour("video/outline", r.outline, color=OUTLINE_RGB, width=2.0)
     rec.log_points("video/centroid", r.centroid[None], colors=ESTIMATE_RGB, radii=3.0)
     if "histogram" in d:
         rec.log_histogram("histogram/tx", d["histogram"], d["hist_edges"])
@@ -709,8 +712,14 @@ def track_clip(
         the_tracker = tracker_cls(space, dynamics, settings, rng, X0=X0, **extra)
         the_tracker.label = name
 
+        refiner = None
+        if settings.outline.refine and settings.output.outline_points and space.basis.closed:
+            from trackcli.observe.region import OutlineRefiner
+
+            refiner = OutlineRefiner(settings.outline)
+
         def make(frames: Iterable[Any]) -> Iterator[Any]:
-            return run_tracker(the_tracker, frames)
+            return run_tracker(the_tracker, frames, refiner=refiner)
         smoother: Any = None
         if smooth:
             from trackcli.trackers.smoothing import KalmanTrackSmoother, ParticleSmoother

@@ -98,6 +98,11 @@ class FrameResult:
     log_d: float = math.nan
     extra: dict[str, float] = field(default_factory=dict)
     display: dict[str, Any] = field(default_factory=dict)
+    outline: np.ndarray | None = None
+    """The outline refined in the full image (:class:`trackcli.observe.region.OutlineRefiner`), a
+    closed polygon ``(K, 2)``; None: the outline is the estimated curve ``contour``."""
+    region_agreement: float = math.nan
+    """IoU of the refined region with the estimate's (NaN without refinement)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -224,15 +229,19 @@ def colour_map(app: Any, image: np.ndarray, exposure: tuple[np.ndarray, np.ndarr
     return LazyColourMap(app, image, exposure)
 
 
-def run_tracker(tracker: Tracker, frames: Iterable[Any], measurement: MeasurementSettings | None = None
-                ) -> Iterator[FrameResult]:
+def run_tracker(tracker: Tracker, frames: Iterable[Any], measurement: MeasurementSettings | None = None,
+                refiner: Any = None) -> Iterator[FrameResult]:
     """The frame loop: for each decoded frame, the feature image, then one tracker step.
 
     ``frames`` yields objects with ``index``, ``time`` and ``image`` (BGR), e.g. a
     :class:`trackcli.io.video.Video`, or :class:`FrameData` already prepared
     (:meth:`Tracker.prepare`); ``measurement``, when given, replaces the tracker's
-    measurement settings for the feature image.
+    measurement settings for the feature image.  With ``refiner``
+    (:class:`trackcli.observe.region.OutlineRefiner`), each result carries the outline refined
+    in the full image from its estimate.
     """
+    import dataclasses
+
     for frame in frames:
         if measurement is not None:
             data = FrameData(int(frame.index), float(frame.time), frame.image, feature_image(frame.image, measurement))
@@ -240,4 +249,9 @@ def run_tracker(tracker: Tracker, frames: Iterable[Any], measurement: Measuremen
             data = frame
         else:
             data = tracker.prepare(frame)
-        yield tracker.step(data)
+        r = tracker.step(data)
+        if refiner is not None:
+            fit = refiner(data.image, r.contour)
+            if fit is not None and fit.outline is not None:
+                r = dataclasses.replace(r, outline=fit.outline, region_agreement=fit.agreement)
+        yield r
