@@ -46,7 +46,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from trackcli.shapes import draw  # noqa: E402
-from trackcli.io.config import load_settings  # noqa: E402
+from trackcli.settings import load_settings  # noqa: E402
 from trackcli.sample_data import load_truth  # noqa: E402
 from trackcli.shapes.outline import build_space  # noqa: E402
 from trackcli.dynamics.handset import handset_dynamics  # noqa: E402

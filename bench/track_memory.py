@@ -26,7 +26,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from trackcli.io.config import load_settings  # noqa: E402
+from trackcli.settings import load_settings  # noqa: E402
 from trackcli.run import clips  # noqa: E402
 
 

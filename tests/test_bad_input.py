@@ -578,7 +578,7 @@ def test_an_interrupt_just_after_rerun_opened_the_file_leaves_no_part(tmp_path, 
 
 def test_an_interrupted_job_stops_at_a_frame_and_leaves_nothing(tmp_path, drawn):
     from trackcli.run import batch
-    from trackcli.io.config import load_settings
+    from trackcli.settings import load_settings
 
     clip, template = drawn
     job = batch.Job(name="clip", clip=str(clip), settings=load_settings(None, {"condensation.particles": 30}),
@@ -610,7 +610,7 @@ def test_a_worker_interrupted_before_its_job_refuses_it(monkeypatch):
 
 def test_the_parent_removes_what_unfinished_jobs_left(tmp_path):
     from trackcli.run import batch
-    from trackcli.io.config import Settings
+    from trackcli.settings import Settings
 
     jobs = [batch.Job(name=n, clip="c.avi", settings=Settings(), template="t.yaml") for n in ("a", "b")]
     for job, files in zip(jobs, ([".a.condensation.rrd.part", ".a.condensation.csv.part", "a.condensation.csv"],

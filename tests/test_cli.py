@@ -14,7 +14,7 @@ from click.testing import CliRunner
 from conftest import CLIP_DRIFT, CLIP_ELLIPSE, CLIP_FRAMES, CLIP_SIZE, CONFIGS
 from trackcli import __version__
 from trackcli.cli import cli
-from trackcli.io.config import Settings, render_commented, settings_from_dict
+from trackcli.settings import Settings, render_commented, settings_from_dict
 from trackcli.shapes.draw import ellipse_outline, mask_iou, polygon_mask
 from trackcli.shapes.spline import dense_polygon
 from trackcli.shapes.template import load_template

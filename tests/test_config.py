@@ -1,4 +1,4 @@
-"""Tests for trackcli.io.config: defaults, key-path errors, overrides, YAML errors, committed configs."""
+"""Tests for trackcli.settings: defaults, key-path errors, overrides, YAML errors, committed configs."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from conftest import CONFIGS
-from trackcli.io.config import (
+from trackcli.settings import (
     Settings,
     describe_settings,
     dump_yaml,
@@ -411,7 +411,7 @@ def test_presets_are_the_configs_folder_and_list_their_purpose():
     from click.testing import CliRunner
 
     from trackcli.cli import cli
-    from trackcli.io.config import PRESETS_DIR, presets
+    from trackcli.settings import PRESETS_DIR, presets
 
     assert PRESETS_DIR.resolve() == CONFIGS.resolve()
     names = sorted(p.stem for p in CONFIGS.glob("*.yaml"))

@@ -19,7 +19,7 @@ from trackcli.dynamics.mixed import (Bounce, MixedDynamics, MixedPrediction, che
                                      load_mixed, mixed_from_dict, read_label_ranges, stationary_distribution,
                                      transitions_from_labels)
 from trackcli.errors import ModelError
-from trackcli.io.config import Settings
+from trackcli.settings import Settings
 from trackcli.run.bounces import detections, match, run_experiment, true_bounces
 from trackcli.trackers import condensation as cond
 

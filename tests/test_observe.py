@@ -12,7 +12,7 @@ import pytest
 from trackcli.errors import DataError
 from trackcli.observe import kernels, measure
 from trackcli.observe import discriminant as observe
-from trackcli.io.config import CondensationSettings, DynamicsSettings, MeasurementSettings, SubspaceDynamics
+from trackcli.settings import CondensationSettings, DynamicsSettings, MeasurementSettings, SubspaceDynamics
 from trackcli.shapes.shape_space import similarity
 from trackcli.shapes.spline import SplineBasis
 from trackcli.observe.presence import Presence

@@ -23,7 +23,7 @@ from click.testing import CliRunner
 from conftest import check_placed
 from trackcli.dynamics import model as model_mod
 from trackcli.cli import cli
-from trackcli.io.config import Settings
+from trackcli.settings import Settings
 from trackcli.dynamics.ar2 import AR2
 from trackcli.dynamics.learning import stabilise
 from trackcli.dynamics.model import Model, place_space, placement_scale, save_model, scale_direction

@@ -156,7 +156,7 @@ def test_series_sent_in_chunks_hold_every_frame_once(tmp_path, ellipse_clip, mon
     the recording holds each frame's values once, as in the CSV, and the whole histogram image."""
     import csv
 
-    from trackcli.io.config import Settings
+    from trackcli.settings import Settings
     from trackcli.run import clips
 
     monkeypatch.setattr(clips, "SERIES_CHUNK", 4)

@@ -17,7 +17,7 @@ from click.testing import CliRunner
 
 from conftest import CLIP_ELLIPSE, CLIP_SIZE
 from trackcli.cli import cli
-from trackcli.io.config import load_settings, replace
+from trackcli.settings import load_settings, replace
 from trackcli.dynamics.ar2 import AR2
 from trackcli.dynamics.model import Model, save_model
 from trackcli.shapes.shape_space import similarity

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from rrd_utils import entity_paths, read_column
-from trackcli.io.config import Settings
+from trackcli.settings import Settings
 from trackcli.io.video import open_video
 from trackcli.run.clips import run_clip
 from trackcli.shapes import shape_space as ss

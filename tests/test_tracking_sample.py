@@ -28,7 +28,7 @@ from click.testing import CliRunner
 from conftest import CONFIGS, SAMPLE_DATA, sample_clip
 from trackcli.observe import measure
 from trackcli.cli import cli
-from trackcli.io.config import load_settings
+from trackcli.settings import load_settings
 from trackcli.dynamics.ar2 import AR2
 from trackcli.run.evaluate import evaluate, load_track, score_frames
 from trackcli.run.evaluate import load_truth as load_eval_truth

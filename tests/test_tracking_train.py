@@ -25,7 +25,7 @@ from click.testing import CliRunner
 import rrd_utils as ru
 from conftest import SAMPLE_DATA, sample_clip
 from trackcli.cli import cli
-from trackcli.io.config import load_settings
+from trackcli.settings import load_settings
 from trackcli.dynamics.learning import fit_ar2
 from trackcli.dynamics.model import load_model
 from trackcli.sample_data import load_truth

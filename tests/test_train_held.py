@@ -18,7 +18,7 @@ import pytest
 from click.testing import CliRunner
 
 from trackcli.cli import cli
-from trackcli.io.config import Settings
+from trackcli.settings import Settings
 from trackcli.dynamics.ar2 import AR2
 from trackcli.errors import DataError
 from trackcli.dynamics.learning import fit_ar2

@@ -122,7 +122,7 @@ def config_show(file: str | None, comments: bool) -> None:
     The output is itself a valid configuration file:
     `trackcli config show --comments > my.yaml` starts a new one.
     """
-    from trackcli.io.config import dump_yaml, load_settings, render_commented
+    from trackcli.settings import dump_yaml, load_settings, render_commented
 
     settings = load_settings(file)
     click.echo(render_commented(settings) if comments else dump_yaml(settings), nl=False)
@@ -135,7 +135,7 @@ def config_list() -> None:
     Use a preset by name from any folder: `trackcli track -c tight ...`.  A file of the
     same name in the current folder wins over the preset.
     """
-    from trackcli.io.config import preset_purpose, presets
+    from trackcli.settings import preset_purpose, presets
 
     found = presets()
     width = max((len(n) for n in found), default=0)
@@ -147,7 +147,7 @@ def config_list() -> None:
 @click.argument("file", type=click.Path(dir_okay=False))
 def config_check(file: str) -> None:
     """Validate FILE; exit 0 if it is valid, 3 with the reason if not."""
-    from trackcli.io.config import load_settings
+    from trackcli.settings import load_settings
 
     load_settings(file)
     click.echo(f"{file}: OK")
@@ -323,14 +323,14 @@ def _confirm_mask(seg, video, frame, fit):
 
 
 def _settings(config: str | None, overrides: dict):
-    from trackcli.io.config import load_settings
+    from trackcli.settings import load_settings
 
     return load_settings(config, {k: v for k, v in overrides.items() if v is not None})
 
 
 def _explicit_keys(config: str | None, overrides: dict) -> set[str]:
     """Dotted keys the user set: every key of the configuration file, and the options given."""
-    from trackcli.io.config import read_yaml
+    from trackcli.settings import read_yaml
 
     keys = {k for k, v in overrides.items() if v is not None}
 
@@ -586,7 +586,7 @@ def learn_cmd(ctx, clips, config, template, output, cycles, shape_space, from_tr
     """
     from pathlib import Path
 
-    from trackcli.io.config import dump_yaml
+    from trackcli.settings import dump_yaml
     from trackcli.dynamics.model import save_model
     from trackcli.io.outputs import output_dir, refuse_overwriting_inputs, write_text
     from trackcli.run.clips import check_template_frame, template_space

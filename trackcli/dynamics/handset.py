@@ -6,7 +6,7 @@ import numpy as np
 
 from trackcli.dynamics.ar2 import AR2, SubspaceModel, partitioned
 from trackcli.errors import ConfigError
-from trackcli.io.config import DynamicsSettings, SubspaceDynamics
+from trackcli.settings import DynamicsSettings, SubspaceDynamics
 from trackcli.shapes.outline import object_size
 from trackcli.shapes.shape_space import ShapeSpace
 

@@ -61,7 +61,7 @@ import yaml
 
 from trackcli.dynamics.ar2 import AR2, predict_samples
 from trackcli.errors import ConfigError, DataError, ModelError
-from trackcli.io.config import DynamicsSettings
+from trackcli.settings import DynamicsSettings
 
 FORMAT = 1
 KIND = "trackcli-mixed"
@@ -277,7 +277,7 @@ def _bounce(d: Any, where: str) -> BounceSpec:
 
 
 def _label(d: Any, where: str) -> LabelSpec:
-    from trackcli.io.config import _build
+    from trackcli.settings import _build
 
     if not isinstance(d, Mapping):
         raise ModelError(f"{where}: expected a mapping with a name and one of dynamics, ar2, bounce; got {d!r}")

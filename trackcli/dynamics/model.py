@@ -28,7 +28,7 @@ from typing import Any, Collection
 import numpy as np
 import yaml
 
-from trackcli.io.config import Settings, replace, settings_from_dict, to_dict
+from trackcli.settings import Settings, replace, settings_from_dict, to_dict
 from trackcli.dynamics.ar2 import AR2
 from trackcli.errors import ConfigError, ModelError, TrackcliError
 from trackcli.io.outputs import other_kind, read_yaml_file, write_text

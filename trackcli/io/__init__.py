@@ -5,7 +5,6 @@
 - :mod:`.tracks` — the track CSV: writing rows, reading tracks, outlines and uncertainty.
 - :mod:`.truth` — what ``eval`` compares: a track's boxes and centres, and ground truth
   (truth CSVs, benchmark box files, folders).
-- :mod:`.config` — settings, presets, YAML with limits, dotted-key overrides.
 - :mod:`.outputs` — atomic writes, output folders, refusal to write over inputs.
 - :mod:`.viewer` — opening recordings in the Rerun viewer.
 """

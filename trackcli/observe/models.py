@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from trackcli.errors import ConfigError
-from trackcli.io.config import CondensationSettings, MeasurementSettings
+from trackcli.settings import CondensationSettings, MeasurementSettings
 from trackcli.observe import measure
 from trackcli.observe.presence import Presence
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trackcli.io.config import CondensationSettings, MeasurementSettings
+from trackcli.settings import CondensationSettings, MeasurementSettings
 from trackcli.observe import discriminant as observe
 from trackcli.shapes.outline import contour_summary
 from trackcli.shapes.shape_space import ShapeSpace

@@ -92,7 +92,7 @@ from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 
 from trackcli import __version__
-from trackcli.io.config import Settings, load_settings, set_dotted, settings_from_dict, to_dict
+from trackcli.settings import Settings, load_settings, set_dotted, settings_from_dict, to_dict
 from trackcli.errors import ConfigError, InputError, TrackcliError, short_repr
 from trackcli.io.outputs import ensure_dir, partial_name, write_text
 from trackcli.run.clips import clip_name, output_files, track_clip

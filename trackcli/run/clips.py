@@ -25,7 +25,7 @@ from typing import Any, Callable, Collection, ContextManager, Iterable, Iterator
 import numpy as np
 
 from trackcli import __version__
-from trackcli.io.config import Settings, dump_yaml, to_dict
+from trackcli.settings import Settings, dump_yaml, to_dict
 from trackcli.dynamics.ar2 import AR2
 from trackcli.dynamics.mixed import is_mixed_file
 from trackcli.errors import ConfigError, DataError, TemplateError

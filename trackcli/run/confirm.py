@@ -94,7 +94,7 @@ def trial(template: Any, frames: Sequence[Any], fps: float, index: int = 0) -> T
     shape-space and hand-set dynamics, as ``trackcli track --template`` does; ``index`` names
     the candidate in the result.  ``frames`` holds at least two frames."""
     from trackcli.dynamics.handset import handset_dynamics
-    from trackcli.io.config import Settings
+    from trackcli.settings import Settings
     from trackcli.run.clips import template_space
     from trackcli.trackers.condensation_tracker import track_condensation
 

@@ -22,7 +22,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from trackcli.shapes import shape_space as ss
-from trackcli.io.config import Settings, to_dict
+from trackcli.settings import Settings, to_dict
 from trackcli.dynamics.ar2 import AR2
 from trackcli.errors import ConfigError, DataError
 from trackcli.dynamics.learning import fit_ar2

@@ -26,7 +26,7 @@ from typing import Any, ClassVar, Iterable, Iterator
 
 import numpy as np
 
-from trackcli.io.config import MeasurementSettings, Settings
+from trackcli.settings import MeasurementSettings, Settings
 from trackcli.observe import measure
 from trackcli.observe.discriminant import LazyColourMap
 from trackcli.observe.scene import in_first_light

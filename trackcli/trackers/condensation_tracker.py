@@ -17,7 +17,7 @@ import numpy as np
 
 from trackcli.dynamics.mixed import MixedDynamics, MixedPrediction
 from trackcli.errors import ConfigError
-from trackcli.io.config import CondensationSettings, MeasurementSettings, Settings
+from trackcli.settings import CondensationSettings, MeasurementSettings, Settings
 from trackcli.observe import discriminant as observe
 from trackcli.observe import measure
 from trackcli.observe.models import observation_model

@@ -14,7 +14,7 @@ from typing import Any, Iterable, Iterator
 
 import numpy as np
 
-from trackcli.io.config import CondensationSettings, KalmanSettings, MeasurementSettings, Settings
+from trackcli.settings import CondensationSettings, KalmanSettings, MeasurementSettings, Settings
 from trackcli.observe.models import nearest_feature_information
 from trackcli.observe.presence import Presence
 from trackcli.shapes.outline import contour_summary, measurement_sampler

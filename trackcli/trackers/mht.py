@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from trackcli.io.config import Settings
+from trackcli.settings import Settings
 from trackcli.observe import measure
 from trackcli.observe.models import observation_model
 from trackcli.observe.presence import Presence

@@ -345,7 +345,7 @@ def _deep_copy(d: Any) -> Any:
 
 
 #: Folder of the preset configurations shipped with the package (``configs/`` of the source tree).
-PRESETS_DIR = Path(__file__).resolve().parent.parent / "configs"
+PRESETS_DIR = Path(__file__).resolve().parent / "configs"
 
 
 def presets() -> dict[str, Path]:
