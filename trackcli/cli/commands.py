@@ -258,10 +258,15 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
         outline = draw.mask_outline(mask_image)
         source = f"box {box} ({seg.method}{note})"
     else:
-        outline = draw.mask_outline(draw.load_mask(mask, size))
+        mask_image = draw.load_mask(mask, size)
+        outline = draw.mask_outline(mask_image)
         source = f"mask {mask}"
     template = _fit_outline(outline, n_ctrl, degree, size, closed=not open_curve, clip=str(clip), frame=frame_index,
                             source=source)
+    if box or mask:  # the region itself, which the spline only approximates (outline refinement)
+        from trackcli.observe.region import mask_polygons
+
+        template = dataclasses.replace(template, region=tuple(mask_polygons(mask_image)) or None)
     if box:
         template = dataclasses.replace(template, box=tuple(b))
     if specs:

@@ -229,11 +229,11 @@ class OutlineColumns:
 
     def cells(self, X: np.ndarray, refined: np.ndarray | None = None) -> list[str]:
         """The row's outline cells: of ``X``'s curve, or of the ``refined`` outline when given
-        (resampled to ``n_points`` equally spaced points)."""
+        (``n_points`` of its vertices that keep its shape, :func:`trackcli.observe.region.simplify_closed`)."""
         if refined is not None and self.space.basis.closed:
-            from trackcli.observe.region import resample_closed
+            from trackcli.observe.region import simplify_closed
 
-            return ["1", *_fmt_all(resample_closed(refined, self.n_points), 3)]
+            return ["1", *_fmt_all(simplify_closed(refined, self.n_points), 3)]
         pts = self.points(X)
         return ["1" if self.space.basis.closed else "0", *_fmt_all(pts, 3)]
 

@@ -71,6 +71,32 @@ def _hist(idx: np.ndarray) -> np.ndarray:
     return h / max(h.sum(), 1.0)
 
 
+def mask_polygons(mask: np.ndarray, least: int = 9) -> list[np.ndarray]:
+    """A binary mask as polygons ``(P, 2)`` of boundary pixels' centres (vertices on straight runs
+    left out): the outer boundary of each piece of at least ``least`` px, largest first, then the
+    boundaries of the holes in them of as many px; :func:`region_fill` fills them back."""
+    import cv2
+
+    m = (np.asarray(mask) > 0).astype(np.uint8)
+    contours, hierarchy = cv2.findContours(m, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_SIMPLE)
+    if not contours:
+        return []
+    outer = [c for c, h in zip(contours, hierarchy[0]) if h[3] < 0 and len(c) >= 3 and cv2.contourArea(c) >= least]
+    holes = [c for c, h in zip(contours, hierarchy[0]) if h[3] >= 0 and len(c) >= 3 and cv2.contourArea(c) >= least]
+    outer.sort(key=cv2.contourArea, reverse=True)
+    holes.sort(key=cv2.contourArea, reverse=True)
+    return [c[:, 0, :].astype(float) for c in outer + holes] if outer else []
+
+
+def region_fill(pieces, shape: tuple[int, int]) -> np.ndarray:
+    """The polygons ``pieces`` (of :func:`mask_polygons`) filled on an image of ``shape``, bool: a
+    pixel is the region's when it is inside an odd number of them (a hole's boundary inside a piece's)."""
+    m = np.zeros(shape, bool)
+    for piece in pieces:
+        m ^= polygon_fill(piece, shape).astype(bool)
+    return m
+
+
 def polygon_fill(points: np.ndarray, shape: tuple[int, int], offset=(0, 0)) -> np.ndarray:
     import cv2
 
@@ -193,21 +219,92 @@ def resample_closed(points: np.ndarray, n: int) -> np.ndarray:
     return np.column_stack([np.interp(u, t, q[:, 0]), np.interp(u, t, q[:, 1])])
 
 
+#: the share of a template's region that must lie in the first estimate's fill (grown by a
+#: tenth of the object's size) for the region to start the refinement
+START_INSIDE = 0.5
+
+
+def simplify_closed(points: np.ndarray, n: int) -> np.ndarray:
+    """``n`` vertices of a closed polygon that keep its shape: the corners Douglas-Peucker keeps
+    (the largest set of at most ``n``), then points added along the longest edges; clockwise on
+    screen from its top, as :func:`resample_closed`.  Equal spacing along a boundary that follows
+    single pixels spends its points on their steps and cuts the corners."""
+    import cv2
+
+    p = np.asarray(points, dtype=float)
+    if len(p) <= 3 or n < 3:
+        return resample_closed(p, n)
+    c = p.astype(np.float32).reshape(-1, 1, 2)
+    lo, hi = 0.0, float(np.ptp(p, axis=0).max()) + 1.0
+    best = None
+    for _ in range(20):  # the smallest tolerance that keeps at most n vertices
+        eps = 0.5 * (lo + hi)
+        v = cv2.approxPolyDP(c, eps, True)[:, 0, :].astype(float)
+        if len(v) <= n:
+            best, hi = v, eps
+        else:
+            lo = eps
+        if hi - lo < 0.05:
+            break
+    if best is None or len(best) < 3:
+        return resample_closed(p, n)
+    x, y = best[:, 0], best[:, 1]
+    if float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)) < 0:
+        best = best[::-1]
+    best = np.roll(best, -int(np.argmin(best[:, 1])), axis=0)
+    # the points still to place go along the longest edges, each edge cut into equal parts
+    nxt = np.roll(best, -1, axis=0)
+    length = np.hypot(*(nxt - best).T)
+    parts = np.ones(len(best), int)
+    for _ in range(n - len(best)):
+        parts[int(np.argmax(length / parts))] += 1
+    out = [best[k] + (nxt[k] - best[k]) * (j / parts[k]) for k in range(len(best)) for j in range(parts[k])]
+    return np.asarray(out)
+
+
 class OutlineRefiner:
     """The outline of every frame fitted again from the tracker's estimate (module docstring).
 
-    The first frame's estimate (the template) teaches the colour model, learned again from
-    the refined first-frame region; each later frame's prior is the estimate and, with
-    ``flow``, the last refined outline moved by the optical flow, their log-odds added.
+    The first frame teaches the colour model: from ``start``, the region the template was
+    fitted to (:attr:`trackcli.shapes.template.Template.region`, polygons in the first frame's
+    pixels), when it lies where the first estimate is; else from the estimate's fill, learned
+    again from the region it refines to.  With ``start`` the first frame's outline is the
+    region's largest piece.  Each later frame's prior is the estimate and, with ``flow``, the
+    last refined outline moved by the optical flow, their log-odds added.
     """
 
-    def __init__(self, settings) -> None:
+    def __init__(self, settings, start=None) -> None:
         self.settings = settings
         self.model: ColourModel | None = None
         self.flow = FlowPrior() if settings.flow else None
         self.last: np.ndarray | None = None
+        self.start = None if not start else [np.asarray(p, dtype=float) for p in start]
 
-    def __call__(self, image_bgr: np.ndarray, estimate: np.ndarray) -> RegionFit | None:
+    def _begin(self, image: np.ndarray, est: np.ndarray) -> RegionFit | None:
+        """The first frame from the template's region, or None when there is none where the estimate is."""
+        import cv2
+
+        if self.start is None:
+            return None
+        shape = image.shape[:2]
+        region = region_fill(self.start, shape)
+        inside = polygon_fill(est, shape)
+        area = np.count_nonzero(region)
+        if area < 9 or not inside.any():
+            return None
+        r = max(1, int(round(0.1 * math.sqrt(np.count_nonzero(inside)))))
+        grown = cv2.dilate(inside, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))).astype(bool)
+        if np.count_nonzero(region & grown) < START_INSIDE * area:
+            return None
+        self.model = ColourModel.learn(image, region)
+        inside = inside.astype(bool)
+        agree = np.count_nonzero(region & inside) / max(np.count_nonzero(region | inside), 1)
+        first = self.start[0]
+        perimeter = float(np.hypot(*np.diff(np.vstack([first, first[:1]]), axis=0).T).sum())
+        # a point every pixel, so that the optical flow moves every part of the boundary
+        return RegionFit(region, (0, 0), resample_closed(first, max(len(first), int(math.ceil(perimeter)))), float(agree))
+
+    def __call__(self, image_bgr: np.ndarray, estimate: np.ndarray, confidence: float = math.nan) -> RegionFit | None:
         s = self.settings
         image = image_bgr if image_bgr.ndim == 3 else np.repeat(image_bgr[..., None], 3, axis=2)
         if self.flow is not None:
@@ -216,6 +313,10 @@ class OutlineRefiner:
         if not np.all(np.isfinite(est)) or len(est) < 3:
             return None
         if self.model is None:
+            fit = self._begin(image, est)
+            if fit is not None:
+                self.last = fit.outline
+                return fit
             m = polygon_fill(est, image.shape[:2]).astype(bool)
             if not m.any():
                 return None
@@ -232,4 +333,10 @@ class OutlineRefiner:
                 others = ((moved, 1.0),)
         fit = refine(image, est, self.model, sigma=s.prior_width, others=others)
         self.last = fit.outline if fit.outline is not None else est
+        rate = getattr(s, "colour_rate", 0.0)
+        if (rate > 0 and fit.outline is not None and confidence >= getattr(s, "update_confidence", 0.7)
+                and fit.agreement >= getattr(s, "update_agreement", 0.6)):
+            x0, y0 = fit.origin
+            h, w = fit.mask.shape
+            self.model.blend(ColourModel.learn(image[y0:y0 + h, x0:x0 + w], fit.mask), rate)
         return fit

@@ -715,8 +715,10 @@ def track_clip(
         refiner = None
         if settings.outline.refine and settings.output.outline_points and space.basis.closed:
             from trackcli.observe.region import OutlineRefiner
+            from trackcli.shapes.template import load_template
 
-            refiner = OutlineRefiner(settings.outline)
+            # the region the template was fitted to starts the refinement (its colours, its outline)
+            refiner = OutlineRefiner(settings.outline, start=load_template(template).region if template else None)
 
         def make(frames: Iterable[Any]) -> Iterator[Any]:
             return run_tracker(the_tracker, frames, refiner=refiner)
