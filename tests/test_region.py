@@ -20,7 +20,7 @@ SIZE = (120, 160)  # height, width
 
 
 def settings(**kw):
-    base = dict(refine=True, prior_width=0.5, flow=True, colour_rate=0.0)
+    base = dict(refine=True, prior_width=0.5, flow=True, colour_rate=0.0, lost_contrast=3.0)
     base.update(kw)
     return types.SimpleNamespace(**base)
 
@@ -159,3 +159,104 @@ def test_simplified_outline_keeps_the_corners_a_ragged_boundary_would_lose():
     assert np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) > 0
     assert simple[0, 1] == pytest.approx(simple[:, 1].min())
     assert R.simplify_closed(boundary.astype(float), 200).shape == (200, 2)
+
+
+# ---------------------------------------------------------------------------------------------
+# Colours that follow the object
+
+
+def disc(cx: float, cy: float = 60.0, r: float = 22.0) -> np.ndarray:
+    m = np.zeros(SIZE, np.uint8)
+    cv2.circle(m, (int(round(cx)), int(round(cy))), int(r), 1, -1)
+    return m.astype(bool)
+
+
+def circle(cx: float, cy: float = 60.0, r: float = 24.0) -> np.ndarray:
+    t = np.linspace(0, 2 * np.pi, 120, endpoint=False)
+    return np.column_stack([cx + r * np.cos(t), cy + r * np.sin(t)])
+
+
+def fading_run(rate: float, n: int = 40, twin: bool = False):
+    """J per frame of a red disc whose colour turns slowly to blue (light changing) as it drifts
+    right; with ``twin``, a look-alike of its first colour stands just below-right of it throughout."""
+    rng = np.random.default_rng(5)
+    ref = R.OutlineRefiner(settings(colour_rate=rate), start=R.mask_polygons(disc(50)))
+    js, leaks = [], []
+    for k in range(n):
+        u = k / (n - 1)
+        obj = (40 + 150 * u, 40, 200 - 150 * u)  # BGR: red to blue
+        m = disc(50 + k)
+        img = frame(m, rng, obj=obj)
+        if twin:
+            other = disc(50 + k + 44, 60 + 30, 16)
+            img[other] = np.clip(np.array([40, 40, 200]) + rng.normal(0, 6, (int(other.sum()), 3)), 0, 255)
+        fit = ref(img, circle(50 + k), confidence=0.9)
+        got = outline_mask(fit.outline, SIZE)
+        js.append(region_similarity(got, m))
+        if twin:
+            leaks.append(np.count_nonzero(got & other) / np.count_nonzero(other))
+    return js, leaks
+
+
+def test_the_colours_follow_the_object_through_a_change_of_light():
+    """Learned on the first frame only, the colours no longer tell the object once its light
+    changed: the outline falls back on the priors (here a circle a little larger than the disc).
+    Moved slowly toward each frame held with confidence, they still do."""
+    held, _ = fading_run(0.1)
+    fixed, _ = fading_run(0.0)
+    assert min(held) > 0.9, held
+    assert np.mean(held[-10:]) > np.mean(fixed[-10:]) + 0.03, (held[-10:], fixed[-10:])
+
+
+def test_the_colour_update_does_not_drift_onto_a_look_alike_beside_the_object():
+    """A look-alike of the object's first colours beside it: the updated model follows the
+    object, and its region does not take in the look-alike."""
+    js, leaks = fading_run(0.1, twin=True)
+    assert min(js) > 0.85, js
+    assert max(leaks) < 0.05, leaks
+
+
+# ---------------------------------------------------------------------------------------------
+# A region that vouches for a frame
+
+
+def test_contrast_is_high_on_the_object_and_low_on_background_or_half_on_it():
+    rng = np.random.default_rng(2)
+    m = disc(60)
+    img = frame(m, rng)
+    model = R.ColourModel.learn(img, m)
+    on = R.contrast(img, circle(60, r=22), model)
+    half = R.contrast(img, circle(82, r=22), model)
+    off = R.contrast(img, circle(125, 35, r=15), model)
+    assert on > 5.0 and half < 3.0 and off < 1.0, (on, half, off)
+    assert np.isnan(R.contrast(img, np.zeros((5, 2)), model))
+
+
+class _LostTracker:
+    """A stand-in tracker whose estimate is a circle at ``x``, always reported lost."""
+
+    def __init__(self, x: float):
+        self.x = x
+
+    def step(self, frame):
+        from trackcli.trackers.base import FrameResult
+
+        c = circle(self.x, r=26)
+        return FrameResult(index=frame.index, time=frame.time, X=np.zeros(2), X_std=np.zeros(2), contour=c,
+                           centroid=c.mean(axis=0), bbox=(0.0, 0.0, 1.0, 1.0), n_found=0, n_normals=24,
+                           gate_rms=10.0, lost=True, confidence=0.2)
+
+
+@pytest.mark.parametrize("x, threshold, lost", [(60, 3.0, False), (60, 0.0, True), (125, 3.0, True)])
+def test_a_region_that_stands_out_overrules_the_trackers_lost(x, threshold, lost):
+    """The refined region on the object, standing out in its colours, overrules the tracker's
+    ``lost`` (a contour that does not fit a deforming object), unless ``lost_contrast`` is 0; an
+    estimate on the background stays lost."""
+    from trackcli.trackers.base import FrameData, run_tracker
+
+    rng = np.random.default_rng(4)
+    m = disc(60)
+    frames = [FrameData(k, k / 25, frame(m, rng), np.zeros(SIZE, np.float32)) for k in range(3)]
+    ref = R.OutlineRefiner(settings(lost_contrast=threshold))  # colours learned from the first estimate
+    results = list(run_tracker(_LostTracker(x), frames, refiner=ref))
+    assert [r.lost for r in results] == [lost] * 3

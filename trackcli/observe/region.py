@@ -19,6 +19,7 @@ background the prior alone decides and the outline is the estimate's.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -28,6 +29,7 @@ import numpy as np
 BINS = 16
 #: limit of the colour log-ratio, so that one bin cannot outvote the prior by itself
 L_MAX = 4.0
+
 
 
 def _bin_index(image_bgr: np.ndarray) -> np.ndarray:
@@ -113,6 +115,7 @@ class RegionFit:
     origin: tuple[int, int]    # (x0, y0) of the ROI in the frame
     outline: np.ndarray | None  # (P, 2) frame coordinates, None when the estimate stands
     agreement: float           # IoU of the region with the estimate's fill
+    contrast: float = math.nan  # how the outline's inside stands out in the object's colours (:func:`contrast`)
 
 
 def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, sigma: float = 0.25,
@@ -164,6 +167,45 @@ def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, s
     inter = np.count_nonzero(region & inside.astype(bool))
     agree = inter / max(np.count_nonzero(region | inside.astype(bool)), 1)
     return RegionFit(region, (x0, y0), c, float(agree))
+
+
+#: the band about a region whose colours :func:`contrast` compares with its inside, in object sizes
+CONTRAST_BAND = 0.25
+
+
+def contrast(image_bgr: np.ndarray, outline: np.ndarray, model: ColourModel) -> float:
+    """How the inside of ``outline`` stands out from its surroundings in ``model``'s colours: the
+    mean colour log-ratio ``L_c`` inside less its mean in a band :data:`CONTRAST_BAND` x the
+    region's size wide about it (NaN for an outline of no area).  An outline on the object is a
+    blob of its colours in others (4-5 on held frames of the DAVIS train sequences); one on the
+    background, or on part of the object and part of the background, stands out less."""
+    import cv2
+
+    h, w = image_bgr.shape[:2]
+    p = np.asarray(outline, dtype=float)
+    if len(p) < 3 or not np.all(np.isfinite(p)):
+        return math.nan
+    x, y = p[:, 0], p[:, 1]
+    if abs(float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))) < 2.0:  # no area
+        return math.nan
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    r = max(2, int(round(CONTRAST_BAND * math.sqrt(max(float(np.prod(hi - lo)), 1.0)))))
+    x0, y0 = int(max(0, math.floor(lo[0]) - r - 1)), int(max(0, math.floor(lo[1]) - r - 1))
+    x1, y1 = int(min(w, math.ceil(hi[0]) + r + 2)), int(min(h, math.ceil(hi[1]) + r + 2))
+    if x1 - x0 < 2 or y1 - y0 < 2:
+        return math.nan
+    inside = polygon_fill(p, (y1 - y0, x1 - x0), (x0, y0))
+    n_in = np.count_nonzero(inside)
+    if n_in == 0:
+        return math.nan
+    r = max(2, int(round(CONTRAST_BAND * math.sqrt(n_in))))
+    band = cv2.dilate(inside, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))).astype(bool)
+    inside = inside.astype(bool)
+    band &= ~inside
+    if not band.any():
+        return math.nan
+    L = model.log_ratio(image_bgr[y0:y1, x0:x1])
+    return float(L[inside].mean() - L[band].mean())
 
 
 #: the frames' scale for the optical flow (DIS at half resolution: 1.6 ms a frame of 854x480)
@@ -262,6 +304,12 @@ def simplify_closed(points: np.ndarray, n: int) -> np.ndarray:
     return np.asarray(out)
 
 
+#: a frame's region updates the colour model only when the tracker's confidence is at least
+#: this and the region agrees with the estimate (IoU) at least :data:`UPDATE_AGREEMENT`
+UPDATE_CONFIDENCE = 0.7
+UPDATE_AGREEMENT = 0.6
+
+
 class OutlineRefiner:
     """The outline of every frame fitted again from the tracker's estimate (module docstring).
 
@@ -271,11 +319,18 @@ class OutlineRefiner:
     again from the region it refines to.  With ``start`` the first frame's outline is the
     region's largest piece.  Each later frame's prior is the estimate and, with ``flow``, the
     last refined outline moved by the optical flow, their log-odds added.
+
+    The colours follow the object's (light, turning) slowly: a frame held with confidence (the
+    tracker's at least :data:`UPDATE_CONFIDENCE`, the region agreeing with the estimate at least
+    :data:`UPDATE_AGREEMENT`) moves the model ``settings.colour_rate`` of the way toward its own
+    region's colours.  The first frame's model stays as the reference :func:`contrast` is
+    measured with, which a drifting model cannot move: the evidence of :meth:`holds`.
     """
 
     def __init__(self, settings, start=None) -> None:
         self.settings = settings
         self.model: ColourModel | None = None
+        self.reference: ColourModel | None = None
         self.flow = FlowPrior() if settings.flow else None
         self.last: np.ndarray | None = None
         self.start = None if not start else [np.asarray(p, dtype=float) for p in start]
@@ -305,6 +360,8 @@ class OutlineRefiner:
         return RegionFit(region, (0, 0), resample_closed(first, max(len(first), int(math.ceil(perimeter)))), float(agree))
 
     def __call__(self, image_bgr: np.ndarray, estimate: np.ndarray, confidence: float = math.nan) -> RegionFit | None:
+        """The refined outline of the frame ``image_bgr`` whose estimate is the closed polygon
+        ``estimate`` (P, 2), held with the tracker's ``confidence`` (NaN: unknown, no update)."""
         s = self.settings
         image = image_bgr if image_bgr.ndim == 3 else np.repeat(image_bgr[..., None], 3, axis=2)
         if self.flow is not None:
@@ -315,8 +372,9 @@ class OutlineRefiner:
         if self.model is None:
             fit = self._begin(image, est)
             if fit is not None:
+                self.reference = ColourModel(self.model.fg.copy(), self.model.bg.copy())
                 self.last = fit.outline
-                return fit
+                return dataclasses.replace(fit, contrast=contrast(image, fit.outline, self.reference))
             m = polygon_fill(est, image.shape[:2]).astype(bool)
             if not m.any():
                 return None
@@ -326,6 +384,7 @@ class OutlineRefiner:
                 m2 = polygon_fill(fit.outline, image.shape[:2]).astype(bool)
                 if m2.any():
                     self.model = ColourModel.learn(image, m2)
+            self.reference = ColourModel(self.model.fg.copy(), self.model.bg.copy())
         others = ()
         if self.flow is not None and self.last is not None:
             moved = self.flow.move(self.last)
@@ -333,10 +392,17 @@ class OutlineRefiner:
                 others = ((moved, 1.0),)
         fit = refine(image, est, self.model, sigma=s.prior_width, others=others)
         self.last = fit.outline if fit.outline is not None else est
-        rate = getattr(s, "colour_rate", 0.0)
-        if (rate > 0 and fit.outline is not None and confidence >= getattr(s, "update_confidence", 0.7)
-                and fit.agreement >= getattr(s, "update_agreement", 0.6)):
+        if fit.outline is None:
+            return fit
+        if (s.colour_rate > 0 and confidence >= UPDATE_CONFIDENCE and fit.agreement >= UPDATE_AGREEMENT):
             x0, y0 = fit.origin
             h, w = fit.mask.shape
-            self.model.blend(ColourModel.learn(image[y0:y0 + h, x0:x0 + w], fit.mask), rate)
-        return fit
+            self.model.blend(ColourModel.learn(image[y0:y0 + h, x0:x0 + w], fit.mask), s.colour_rate)
+        return dataclasses.replace(fit, contrast=contrast(image, fit.outline, self.reference))
+
+    def holds(self, fit: RegionFit | None) -> bool:
+        """Whether a frame's refined region is evidence enough that the object is held whatever
+        the tracker's confidence: its inside stands out from its surroundings in the first
+        frame's colours by at least ``settings.lost_contrast`` (:func:`contrast`; 0: never)."""
+        t = self.settings.lost_contrast
+        return fit is not None and t > 0 and math.isfinite(fit.contrast) and fit.contrast >= t
