@@ -260,3 +260,21 @@ def test_a_region_that_stands_out_overrules_the_trackers_lost(x, threshold, lost
     ref = R.OutlineRefiner(settings(lost_contrast=threshold))  # colours learned from the first estimate
     results = list(run_tracker(_LostTracker(x), frames, refiner=ref))
     assert [r.lost for r in results] == [lost] * 3
+
+
+def test_a_large_object_refined_on_the_shrunk_frame_gives_the_same_outline():
+    """``work_size``: the region of a large object found on the ROI shrunk to that size is, in
+    the frame's pixels, the one found at full size (to a pixel or so)."""
+    rng = np.random.default_rng(8)
+    m = np.zeros(SIZE, np.uint8)
+    cv2.ellipse(m, ((80, 60), (120, 90), 20.0), 1, -1)
+    m = m.astype(bool)
+    img = frame(m, rng)
+    model = R.ColourModel.learn(img, m)
+    est = ellipse_about(m)
+    full = R.refine(img, est, model, sigma=0.5)
+    small = R.refine(img, est, model, sigma=0.5, work_size=50.0)
+    assert full.scale == 1.0 and small.scale < 0.6
+    assert small.mask.shape[0] < 0.6 * full.mask.shape[0]
+    j = region_similarity(outline_mask(small.outline, SIZE), outline_mask(full.outline, SIZE))
+    assert j > 0.95 and region_similarity(outline_mask(small.outline, SIZE), m) > 0.95, j

@@ -53,8 +53,7 @@ class ColourModel:
         idx = _bin_index(image_bgr)
         size = math.sqrt(max(np.count_nonzero(m), 1))
         r = max(3, int(round(band * size)))
-        ring = cv2.dilate(m.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
-        ring = ring.astype(bool) & ~m
+        ring = grow(m, r) & ~m
         return cls(_hist(idx[m]), _hist(idx[ring]))
 
     def log_ratio(self, image_bgr: np.ndarray) -> np.ndarray:
@@ -66,6 +65,15 @@ class ColourModel:
         """Move toward ``other`` by ``rate`` (a slow update from a frame held with confidence)."""
         self.fg = (1 - rate) * self.fg + rate * other.fg
         self.bg = (1 - rate) * self.bg + rate * other.bg
+
+
+def grow(mask: np.ndarray, r: float) -> np.ndarray:
+    """``mask`` grown by ``r`` px (the pixels within ``r`` of it, Euclidean), bool: a dilation by a
+    disc, whose time does not grow with the disc as a structuring element's does."""
+    import cv2
+
+    m = np.asarray(mask).astype(bool)
+    return cv2.distanceTransform((~m).astype(np.uint8), cv2.DIST_L2, 3) <= r
 
 
 def _hist(idx: np.ndarray) -> np.ndarray:
@@ -116,13 +124,17 @@ class RegionFit:
     outline: np.ndarray | None  # (P, 2) frame coordinates, None when the estimate stands
     agreement: float           # IoU of the region with the estimate's fill
     contrast: float = math.nan  # how the outline's inside stands out in the object's colours (:func:`contrast`)
+    scale: float = 1.0         # the ROI's pixels per frame pixel (refine's work_size)
 
 
 def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, sigma: float = 0.25,
-           margin: float = 0.5, smooth: float = 1.5, others: tuple = ()) -> RegionFit:
+           margin: float = 0.5, smooth: float = 1.5, others: tuple = (), work_size: float = math.inf) -> RegionFit:
     """The region the colour posterior and the estimate's prior agree on (module docstring).
 
-    ``others``: more priors ``(outline, weight)``, their log-odds added to the estimate's."""
+    ``others``: more priors ``(outline, weight)``, their log-odds added to the estimate's.
+    ``work_size``: an object larger than this (px, the square root of its priors' box) is
+    refined on the image shrunk to this size (the region's mask is then of the shrunk image,
+    ``RegionFit.scale`` the factor; the outline is in the frame's pixels)."""
     import cv2
 
     h, w = image_bgr.shape[:2]
@@ -136,20 +148,28 @@ def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, s
     if x1 - x0 < 4 or y1 - y0 < 4:
         return RegionFit(np.zeros((0, 0), bool), (x0, y0), None, 0.0)
     roi = image_bgr[y0:y1, x0:x1]
-    inside = polygon_fill(est, (y1 - y0, x1 - x0), (x0, y0))
+    f = min(1.0, work_size / size)
+    if f < 1.0:
+        roi = cv2.resize(roi, (max(4, round((x1 - x0) * f)), max(4, round((y1 - y0) * f))), interpolation=cv2.INTER_AREA)
+        f = roi.shape[1] / (x1 - x0)
+
+    def shrink(p: np.ndarray) -> np.ndarray:  # frame pixels -> the ROI's (pixel centres kept)
+        return (np.asarray(p, dtype=float) - (x0, y0) + 0.5) * f - 0.5
+
+    inside = polygon_fill(shrink(est), roi.shape[:2])
     area = float(np.count_nonzero(inside))
     if area < 9:
-        return RegionFit(inside.astype(bool), (x0, y0), None, 0.0)
+        return RegionFit(inside.astype(bool), (x0, y0), None, 0.0, scale=f)
     obj = math.sqrt(area)
     d_out = cv2.distanceTransform(1 - inside, cv2.DIST_L2, 3)
     d_in = cv2.distanceTransform(inside, cv2.DIST_L2, 3)
     signed = d_out - d_in
     L = model.log_ratio(roi)
     if smooth > 0:
-        L = cv2.GaussianBlur(L, (0, 0), smooth)
+        L = cv2.GaussianBlur(L, (0, 0), max(0.5, smooth * f))
     post = L - signed / (sigma * obj)
     for o, wt in others:
-        ins = polygon_fill(o, inside.shape, (x0, y0))
+        ins = polygon_fill(shrink(o), inside.shape)
         sd = cv2.distanceTransform(1 - ins, cv2.DIST_L2, 3) - cv2.distanceTransform(ins, cv2.DIST_L2, 3)
         post = post - wt * sd / (sigma * obj)
     region = (post > 0).astype(np.uint8)
@@ -160,13 +180,13 @@ def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, s
         keep[1:] = overlap[1:] > 0.02 * area
     region = keep[lab]
     if not region.any():
-        return RegionFit(region, (x0, y0), None, 0.0)
+        return RegionFit(region, (x0, y0), None, 0.0, scale=f)
     u = region.astype(np.uint8)
     contours, _ = cv2.findContours(u, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    c = max(contours, key=cv2.contourArea)[:, 0, :].astype(float) + (x0, y0)
+    c = (max(contours, key=cv2.contourArea)[:, 0, :].astype(float) + 0.5) / f - 0.5 + (x0, y0)
     inter = np.count_nonzero(region & inside.astype(bool))
     agree = inter / max(np.count_nonzero(region | inside.astype(bool)), 1)
-    return RegionFit(region, (x0, y0), c, float(agree))
+    return RegionFit(region, (x0, y0), c, float(agree), scale=f)
 
 
 #: the band about a region whose colours :func:`contrast` compares with its inside, in object sizes
@@ -199,9 +219,8 @@ def contrast(image_bgr: np.ndarray, outline: np.ndarray, model: ColourModel) -> 
     if n_in == 0:
         return math.nan
     r = max(2, int(round(CONTRAST_BAND * math.sqrt(n_in))))
-    band = cv2.dilate(inside, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))).astype(bool)
     inside = inside.astype(bool)
-    band &= ~inside
+    band = grow(inside, r) & ~inside
     if not band.any():
         return math.nan
     L = model.log_ratio(image_bgr[y0:y1, x0:x1])
@@ -308,6 +327,9 @@ def simplify_closed(points: np.ndarray, n: int) -> np.ndarray:
 #: this and the region agrees with the estimate (IoU) at least :data:`UPDATE_AGREEMENT`
 UPDATE_CONFIDENCE = 0.7
 UPDATE_AGREEMENT = 0.6
+#: objects larger than this (px, the square root of the area of their priors' box) are refined
+#: on the frame shrunk to it: the time of a frame no longer grows with the object's size
+WORK_SIZE = 160.0
 
 
 class OutlineRefiner:
@@ -348,7 +370,7 @@ class OutlineRefiner:
         if area < 9 or not inside.any():
             return None
         r = max(1, int(round(0.1 * math.sqrt(np.count_nonzero(inside)))))
-        grown = cv2.dilate(inside, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))).astype(bool)
+        grown = grow(inside, r)
         if np.count_nonzero(region & grown) < START_INSIDE * area:
             return None
         self.model = ColourModel.learn(image, region)
@@ -362,6 +384,8 @@ class OutlineRefiner:
     def __call__(self, image_bgr: np.ndarray, estimate: np.ndarray, confidence: float = math.nan) -> RegionFit | None:
         """The refined outline of the frame ``image_bgr`` whose estimate is the closed polygon
         ``estimate`` (P, 2), held with the tracker's ``confidence`` (NaN: unknown, no update)."""
+        import cv2
+
         s = self.settings
         image = image_bgr if image_bgr.ndim == 3 else np.repeat(image_bgr[..., None], 3, axis=2)
         if self.flow is not None:
@@ -390,14 +414,18 @@ class OutlineRefiner:
             moved = self.flow.move(self.last)
             if moved is not None:
                 others = ((moved, 1.0),)
-        fit = refine(image, est, self.model, sigma=s.prior_width, others=others)
+        fit = refine(image, est, self.model, sigma=s.prior_width, others=others, work_size=WORK_SIZE)
         self.last = fit.outline if fit.outline is not None else est
         if fit.outline is None:
             return fit
         if (s.colour_rate > 0 and confidence >= UPDATE_CONFIDENCE and fit.agreement >= UPDATE_AGREEMENT):
             x0, y0 = fit.origin
             h, w = fit.mask.shape
-            self.model.blend(ColourModel.learn(image[y0:y0 + h, x0:x0 + w], fit.mask), s.colour_rate)
+            x1, y1 = x0 + int(round(w / fit.scale)), y0 + int(round(h / fit.scale))
+            roi = image[y0:y1, x0:x1]
+            if roi.shape[:2] != (h, w):
+                roi = cv2.resize(roi, (w, h), interpolation=cv2.INTER_AREA)
+            self.model.blend(ColourModel.learn(roi, fit.mask), s.colour_rate)
         return dataclasses.replace(fit, contrast=contrast(image, fit.outline, self.reference))
 
     def holds(self, fit: RegionFit | None) -> bool:
