@@ -278,3 +278,40 @@ def test_a_large_object_refined_on_the_shrunk_frame_gives_the_same_outline():
     assert small.mask.shape[0] < 0.6 * full.mask.shape[0]
     j = region_similarity(outline_mask(small.outline, SIZE), outline_mask(full.outline, SIZE))
     assert j > 0.95 and region_similarity(outline_mask(small.outline, SIZE), m) > 0.95, j
+
+
+# ---------------------------------------------------------------------------------------------
+# An object in pieces
+
+
+def test_joined_outline_fills_every_piece_and_little_else():
+    m = np.zeros(SIZE, bool)
+    m[10:50, 10:50] = True
+    m[60:100, 20:40] = True
+    m[20:40, 100:150] = True
+    m[105:110, 120:125] = True
+    pieces = R.outer_pieces(m)
+    assert len(pieces) == 4
+    joined = R.joined_outline(pieces)
+    filled = outline_mask(joined, SIZE)
+    assert np.all(filled[m])
+    # beyond the pieces, only the bridges' lines (about 120 px of them, two pixels wide at most)
+    assert np.count_nonzero(filled & ~m) < 2 * 125
+    np.testing.assert_array_equal(R.joined_outline(pieces[:1]), pieces[0])
+
+
+def test_an_object_a_pole_cuts_in_two_is_outlined_whole():
+    """A pole in front of the object cuts its region in two; both parts are on the estimate, and
+    the outline takes both in (before: only the larger)."""
+    rng = np.random.default_rng(6)
+    m = np.zeros(SIZE, np.uint8)
+    cv2.ellipse(m, ((75, 60), (90, 50), 0.0), 1, -1)
+    m[:, 88:96] = 0  # the pole
+    m = m.astype(bool)
+    img = frame(m, rng)
+    img[:, 88:96] = (200, 200, 200)
+    ref = R.OutlineRefiner(settings(), start=R.mask_polygons(m))
+    for _ in range(3):
+        fit = ref(img, ellipse_about(m))
+    assert len(fit.pieces) == 2
+    assert region_similarity(outline_mask(fit.outline, SIZE), m) > 0.9

@@ -125,13 +125,17 @@ class RegionFit:
     agreement: float           # IoU of the region with the estimate's fill
     contrast: float = math.nan  # how the outline's inside stands out in the object's colours (:func:`contrast`)
     scale: float = 1.0         # the ROI's pixels per frame pixel (refine's work_size)
+    pieces: tuple = ()         # the outer boundaries of the region's pieces, frame coordinates, largest first
 
 
 def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, sigma: float = 0.25,
            margin: float = 0.5, smooth: float = 1.5, others: tuple = (), work_size: float = math.inf) -> RegionFit:
     """The region the colour posterior and the estimate's prior agree on (module docstring).
 
-    ``others``: more priors ``(outline, weight)``, their log-odds added to the estimate's.
+    ``others``: more priors ``(pieces, weight)``, ``pieces`` a polygon ``(P, 2)`` or a list of
+    them (a region in pieces), their log-odds added to the estimate's.  The region's connected
+    parts kept are those that overlap the estimate; the outline joins them (:func:`joined_outline`:
+    a person's legs that a shadow or a pole cuts off are the person's).
     ``work_size``: an object larger than this (px, the square root of its priors' box) is
     refined on the image shrunk to this size (the region's mask is then of the shrunk image,
     ``RegionFit.scale`` the factor; the outline is in the frame's pixels)."""
@@ -139,7 +143,8 @@ def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, s
 
     h, w = image_bgr.shape[:2]
     est = np.asarray(estimate, dtype=float)
-    allp = np.vstack([est] + [np.asarray(o, dtype=float) for o, _ in others])
+    others = [([o] if isinstance(o, np.ndarray) and o.ndim == 2 else list(o), wt) for o, wt in others]
+    allp = np.vstack([est] + [np.asarray(p, dtype=float) for o, _ in others for p in o])
     lo, hi = allp.min(axis=0), allp.max(axis=0)
     size = math.sqrt(max((hi - lo).prod(), 1.0))
     pad = margin * size + 4
@@ -156,6 +161,9 @@ def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, s
     def shrink(p: np.ndarray) -> np.ndarray:  # frame pixels -> the ROI's (pixel centres kept)
         return (np.asarray(p, dtype=float) - (x0, y0) + 0.5) * f - 0.5
 
+    def grow_back(p: np.ndarray) -> np.ndarray:  # the ROI's pixels -> the frame's
+        return (np.asarray(p, dtype=float) + 0.5) / f - 0.5 + (x0, y0)
+
     inside = polygon_fill(shrink(est), roi.shape[:2])
     area = float(np.count_nonzero(inside))
     if area < 9:
@@ -169,7 +177,9 @@ def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, s
         L = cv2.GaussianBlur(L, (0, 0), max(0.5, smooth * f))
     post = L - signed / (sigma * obj)
     for o, wt in others:
-        ins = polygon_fill(shrink(o), inside.shape)
+        ins = np.zeros(inside.shape, np.uint8)
+        for piece in o:
+            ins |= polygon_fill(shrink(piece), inside.shape)
         sd = cv2.distanceTransform(1 - ins, cv2.DIST_L2, 3) - cv2.distanceTransform(ins, cv2.DIST_L2, 3)
         post = post - wt * sd / (sigma * obj)
     region = (post > 0).astype(np.uint8)
@@ -181,12 +191,74 @@ def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, s
     region = keep[lab]
     if not region.any():
         return RegionFit(region, (x0, y0), None, 0.0, scale=f)
-    u = region.astype(np.uint8)
-    contours, _ = cv2.findContours(u, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    c = (max(contours, key=cv2.contourArea)[:, 0, :].astype(float) + 0.5) / f - 0.5 + (x0, y0)
+    pieces = outer_pieces(region, least=max(9.0, PIECE_LEAST * area))
+    if not pieces:
+        return RegionFit(region, (x0, y0), None, 0.0, scale=f)
+    c = grow_back(joined_outline(pieces))
     inter = np.count_nonzero(region & inside.astype(bool))
     agree = inter / max(np.count_nonzero(region | inside.astype(bool)), 1)
-    return RegionFit(region, (x0, y0), c, float(agree), scale=f)
+    return RegionFit(region, (x0, y0), c, float(agree), scale=f, pieces=tuple(grow_back(p) for p in pieces))
+
+
+#: the least area of a piece of the region (a share of the estimate's) that the outline takes in
+PIECE_LEAST = 0.02
+
+
+def outer_pieces(mask: np.ndarray, least: float = 9.0) -> list[np.ndarray]:
+    """The outer boundaries of a mask's pieces of at least ``least`` px, largest first (every
+    boundary pixel, as :func:`cv2.findContours` gives them; holes left out)."""
+    import cv2
+
+    contours, _ = cv2.findContours(np.asarray(mask).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    pieces = [c for c in contours if len(c) >= 3 and cv2.contourArea(c) >= least]
+    pieces.sort(key=cv2.contourArea, reverse=True)
+    return [c[:, 0, :].astype(float) for c in pieces]
+
+
+def joined_outline(pieces: list[np.ndarray]) -> np.ndarray:
+    """One closed polygon around several pieces (polygons), joined by the shortest bridges
+    between them (a minimum spanning tree of their nearest points), each crossed there and back:
+    its fill is the pieces' (and the bridges' lines).  One piece: itself."""
+    if len(pieces) == 1:
+        return pieces[0]
+    k = len(pieces)
+    sub = [p[:: max(1, len(p) // 200)] for p in pieces]  # nearest points, on at most 200 of each
+    dist = np.full((k, k), np.inf)
+    near: dict[tuple[int, int], tuple[int, int]] = {}
+    for a in range(k):
+        for b in range(a + 1, k):
+            d = np.hypot(*(sub[a][:, None, :] - sub[b][None, :, :]).transpose(2, 0, 1))
+            i, j = np.unravel_index(int(np.argmin(d)), d.shape)
+            dist[a, b] = dist[b, a] = d[i, j]
+            near[(a, b)] = (int(i) * max(1, len(pieces[a]) // 200), int(j) * max(1, len(pieces[b]) // 200))
+            near[(b, a)] = near[(a, b)][::-1]
+    # Prim's tree from the largest piece; then a walk around the tree: each piece's boundary
+    # from where it is entered, with its children's walks spliced in at their bridges
+    tree: dict[int, list[int]] = {a: [] for a in range(k)}
+    inside, best, parent = {0}, dist[0].copy(), np.zeros(k, int)
+    while len(inside) < k:
+        b = min((i for i in range(k) if i not in inside), key=lambda i: best[i])
+        inside.add(b)
+        tree[int(parent[b])].append(b)
+        for i in range(k):
+            if i not in inside and dist[b, i] < best[i]:
+                best[i], parent[i] = dist[b, i], b
+
+    def walk(a: int, start: int) -> list[np.ndarray]:
+        p = pieces[a]
+        at: dict[int, list[int]] = {}
+        for c in tree[a]:
+            at.setdefault(near[(a, c)][0], []).append(c)
+        out = []
+        for step in range(len(p)):
+            i = (start + step) % len(p)
+            out.append(p[i])
+            for c in at.get(i, ()):
+                out.extend(walk(c, near[(a, c)][1]))
+                out.append(p[i])
+        return out
+
+    return np.asarray(walk(0, 0))
 
 
 #: the band about a region whose colours :func:`contrast` compares with its inside, in object sizes
@@ -339,8 +411,9 @@ class OutlineRefiner:
     fitted to (:attr:`trackcli.shapes.template.Template.region`, polygons in the first frame's
     pixels), when it lies where the first estimate is; else from the estimate's fill, learned
     again from the region it refines to.  With ``start`` the first frame's outline is the
-    region's largest piece.  Each later frame's prior is the estimate and, with ``flow``, the
-    last refined outline moved by the optical flow, their log-odds added.
+    region's (its pieces joined, :func:`joined_outline`).  Each later frame's prior is the
+    estimate and, with ``flow``, the last refined region's pieces moved by the optical flow,
+    their log-odds added.
 
     The colours follow the object's (light, turning) slowly: a frame held with confidence (the
     tracker's at least :data:`UPDATE_CONFIDENCE`, the region agreeing with the estimate at least
@@ -376,10 +449,11 @@ class OutlineRefiner:
         self.model = ColourModel.learn(image, region)
         inside = inside.astype(bool)
         agree = np.count_nonzero(region & inside) / max(np.count_nonzero(region | inside), 1)
-        first = self.start[0]
-        perimeter = float(np.hypot(*np.diff(np.vstack([first, first[:1]]), axis=0).T).sum())
-        # a point every pixel, so that the optical flow moves every part of the boundary
-        return RegionFit(region, (0, 0), resample_closed(first, max(len(first), int(math.ceil(perimeter)))), float(agree))
+        # every boundary pixel, so that the optical flow moves every part of the boundary
+        pieces = outer_pieces(region, least=max(9.0, PIECE_LEAST * area))
+        if not pieces:
+            return None
+        return RegionFit(region, (0, 0), joined_outline(pieces), float(agree), pieces=tuple(pieces))
 
     def __call__(self, image_bgr: np.ndarray, estimate: np.ndarray, confidence: float = math.nan) -> RegionFit | None:
         """The refined outline of the frame ``image_bgr`` whose estimate is the closed polygon
@@ -397,7 +471,7 @@ class OutlineRefiner:
             fit = self._begin(image, est)
             if fit is not None:
                 self.reference = ColourModel(self.model.fg.copy(), self.model.bg.copy())
-                self.last = fit.outline
+                self.last = list(fit.pieces)
                 return dataclasses.replace(fit, contrast=contrast(image, fit.outline, self.reference))
             m = polygon_fill(est, image.shape[:2]).astype(bool)
             if not m.any():
@@ -411,11 +485,11 @@ class OutlineRefiner:
             self.reference = ColourModel(self.model.fg.copy(), self.model.bg.copy())
         others = ()
         if self.flow is not None and self.last is not None:
-            moved = self.flow.move(self.last)
-            if moved is not None:
+            moved = [self.flow.move(p) for p in self.last]
+            if all(m is not None for m in moved):
                 others = ((moved, 1.0),)
         fit = refine(image, est, self.model, sigma=s.prior_width, others=others, work_size=WORK_SIZE)
-        self.last = fit.outline if fit.outline is not None else est
+        self.last = list(fit.pieces) if fit.outline is not None else [est]
         if fit.outline is None:
             return fit
         if (s.colour_rate > 0 and confidence >= UPDATE_CONFIDENCE and fit.agreement >= UPDATE_AGREEMENT):
