@@ -13,8 +13,15 @@ prior (AC ch. 8's posterior fit, here pixel by pixel):
 - a pixel is the object's where ``L_c + L_s > 0`` (both smoothed a little so the region's
   boundary does not follow single pixels), in the connected parts that overlap the estimate.
 
-The refined outline is the boundary of that region.  Where colour does not tell object from
-background the prior alone decides and the outline is the estimate's.
+The refined outline is the boundary of that region, its pieces joined into one polygon.  Where
+colour does not tell object from background the prior alone decides and the outline is the
+estimate's.
+
+:class:`OutlineRefiner` runs this over a clip: it learns the colours from the region the
+template was drawn from, moves the last outline to each new frame by dense optical flow (a
+second prior), lets the colours follow the object slowly on frames held with confidence, and
+says when a frame's region is evidence enough that the object is held (:meth:`~OutlineRefiner.holds`,
+the ``lost`` verdict's second opinion).
 """
 
 from __future__ import annotations
@@ -47,8 +54,6 @@ class ColourModel:
     @classmethod
     def learn(cls, image_bgr: np.ndarray, mask: np.ndarray, *, band: float = 0.5) -> "ColourModel":
         """From an image and the object's mask: the inside, and a band of ``band`` x its size about it."""
-        import cv2
-
         m = mask.astype(bool)
         idx = _bin_index(image_bgr)
         size = math.sqrt(max(np.count_nonzero(m), 1))
@@ -271,8 +276,6 @@ def contrast(image_bgr: np.ndarray, outline: np.ndarray, model: ColourModel) -> 
     region's size wide about it (NaN for an outline of no area).  An outline on the object is a
     blob of its colours in others (4-5 on held frames of the DAVIS train sequences); one on the
     background, or on part of the object and part of the background, stands out less."""
-    import cv2
-
     h, w = image_bgr.shape[:2]
     p = np.asarray(outline, dtype=float)
     if len(p) < 3 or not np.all(np.isfinite(p)):
@@ -432,8 +435,6 @@ class OutlineRefiner:
 
     def _begin(self, image: np.ndarray, est: np.ndarray) -> RegionFit | None:
         """The first frame from the template's region, or None when there is none where the estimate is."""
-        import cv2
-
         if self.start is None:
             return None
         shape = image.shape[:2]
