@@ -232,7 +232,8 @@ class OutlineSettings:
                             "IoU >= 0.6); 0: the first frame's colours throughout", lo=0, hi=1)
     lost_contrast: float = _f(3.0, "float", "a frame the tracker reports lost is reported held when the inside of its refined "
                               "outline stands out from a band about it by at least this in the first frame's colours (mean "
-                              "colour log-ratio inside less outside; held frames score 4-5); 0: the tracker's verdict as it is",
+                              "colour log-ratio inside less outside; held frames score 4-5) and the outline still agrees with "
+                              "the estimate (IoU >= 0.2); 0: the tracker's verdict as it is",
                               lo=0, hi=8)
 
 

@@ -402,6 +402,8 @@ def simplify_closed(points: np.ndarray, n: int) -> np.ndarray:
 #: this and the region agrees with the estimate (IoU) at least :data:`UPDATE_AGREEMENT`
 UPDATE_CONFIDENCE = 0.7
 UPDATE_AGREEMENT = 0.6
+#: the least IoU of a region with the estimate for the region to vouch for its frame (holds)
+HOLD_AGREEMENT = 0.2
 #: objects larger than this (px, the square root of the area of their priors' box) are refined
 #: on the frame shrunk to it: the time of a frame no longer grows with the object's size
 WORK_SIZE = 160.0
@@ -506,6 +508,10 @@ class OutlineRefiner:
     def holds(self, fit: RegionFit | None) -> bool:
         """Whether a frame's refined region is evidence enough that the object is held whatever
         the tracker's confidence: its inside stands out from its surroundings in the first
-        frame's colours by at least ``settings.lost_contrast`` (:func:`contrast`; 0: never)."""
+        frame's colours by at least ``settings.lost_contrast`` (:func:`contrast`; 0: never), and
+        it still agrees with the estimate (IoU at least :data:`HOLD_AGREEMENT`).  A region that
+        has parted from the estimate vouches for neither: on a cluttered clip it is as often on a
+        look-alike of the object's colours as on the object."""
         t = self.settings.lost_contrast
-        return fit is not None and t > 0 and math.isfinite(fit.contrast) and fit.contrast >= t
+        return (fit is not None and t > 0 and math.isfinite(fit.contrast) and fit.contrast >= t
+                and fit.agreement >= HOLD_AGREEMENT)
