@@ -1,7 +1,7 @@
 """The trackers' outputs on the sample clips are pinned.
 
 The CSVs in ``tests/data/pinned`` were written by ``trackcli track`` with the commands of
-:data:`RUNS`.  Any change of what a tracker computes (a refactor that should change
+:data:`RUNS` (and, with ``--smooth``, :data:`SMOOTHED`).  Any change of what a tracker computes (a refactor that should change
 nothing, a speed-up, a new thread pool) must leave them as they are; a change that is
 meant to alter the numbers regenerates them and says why in its commit.
 """
@@ -29,7 +29,17 @@ RUNS = {
     "three_heads.condensation.csv": ["sample_data/three_heads.mp4", "--template",
                                      "tests/data/pinned/three_heads.template.yaml", "--tracker", "condensation",
                                      "--end", "25", "--seed", "5", "-c", "three-heads"],
+    "test.mht.csv": ["sample_data/test.mp4", "--template", "tests/data/pinned/test.template.yaml",
+                     "--tracker", "mht", "--end", "25", "--seed", "3"],
+    # a structure template (draw --parts face:205,125,32,35 --parts shirt_left:185,195,30,30
+    # --parts shirt_right:245,195,30,30 on frame 0)
+    "test.coupled.csv": ["sample_data/test.mp4", "--template", "tests/data/pinned/test.structure.yaml",
+                         "--tracker", "coupled", "--end", "25", "--seed", "3"],
 }
+
+#: name of a pinned smoothed CSV -> the run of :data:`RUNS` that writes it with ``--smooth``
+SMOOTHED = {"test.condensation.smoothed.csv": "test.condensation.csv",
+            "test.kalman.smoothed.csv": "test.kalman.csv"}
 
 
 def _rows(path: Path) -> tuple[list[str], list[list[str]]]:
@@ -70,6 +80,16 @@ def test_the_tracks_of_the_sample_clips_are_as_pinned(name, tmp_path, monkeypatc
     res = CliRunner().invoke(cli, ["-q", "track", *RUNS[name], "-o", str(tmp_path), "--no-rrd"])
     assert res.exit_code == 0, res.output
     _assert_as_pinned(name, tmp_path / name)
+
+
+@pytest.mark.parametrize("name", sorted(SMOOTHED))
+def test_the_smoothed_tracks_are_as_pinned_and_leave_the_track_as_it_was(name, tmp_path, monkeypatch):
+    monkeypatch.chdir(ROOT)
+    track = SMOOTHED[name]
+    res = CliRunner().invoke(cli, ["-q", "track", *RUNS[track], "--smooth", "-o", str(tmp_path), "--no-rrd"])
+    assert res.exit_code == 0, res.output
+    _assert_as_pinned(name, tmp_path / name)
+    _assert_as_pinned(track, tmp_path / track)
 
 
 def _assert_as_pinned(name: str, path: Path) -> None:
