@@ -1,9 +1,10 @@
 """The trackers' outputs on the sample clips are pinned.
 
 The CSVs in ``tests/data/pinned`` were written by ``trackcli track`` with the commands of
-:data:`RUNS` (and, with ``--smooth``, :data:`SMOOTHED`).  Any change of what a tracker computes (a refactor that should change
-nothing, a speed-up, a new thread pool) must leave them as they are; a change that is
-meant to alter the numbers regenerates them and says why in its commit.
+:data:`RUNS` (and, with ``--smooth``, :data:`SMOOTHED`).  Any change of what a tracker
+computes (a refactor that should change nothing, a speed-up, a new thread pool) must leave
+them as they are; a change that is meant to alter the numbers regenerates them and says why
+in its commit.
 """
 
 from __future__ import annotations
@@ -35,6 +36,10 @@ RUNS = {
     # --parts shirt_right:245,195,30,30 on frame 0)
     "test.coupled.csv": ["sample_data/test.mp4", "--template", "tests/data/pinned/test.structure.yaml",
                          "--tracker", "coupled", "--end", "25", "--seed", "3"],
+    # mixed-state dynamics (a motion label per sample; draw --box 22,52,36,36 on frame 0)
+    "bouncing_ball.condensation.csv": ["sample_data/bouncing_ball.mp4", "--model", "examples/bouncing_ball.mixed.yaml",
+                                       "--template", "tests/data/pinned/bouncing_ball.template.yaml",
+                                       "-c", "examples/bouncing_ball.settings.yaml", "--end", "30", "--seed", "2"],
 }
 
 #: name of a pinned smoothed CSV -> the run of :data:`RUNS` that writes it with ``--smooth``
