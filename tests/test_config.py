@@ -56,7 +56,7 @@ def test_defaults_load_without_a_file():
     assert s.dynamics.units == "object"
     assert s.dynamics.translation.rho is None and s.dynamics.translation.gamma0 == 5.0
     assert s.dynamics.deformation.rho == 0.1  # the deformation section has its own defaults
-    assert s.condensation.likelihood == "discriminant"
+    assert s.observation.likelihood == "discriminant"
     assert s.video.fps is None and s.video.end is None
 
 
@@ -226,10 +226,10 @@ def test_valid_edge_values_are_accepted(key, value, stored):
 
 
 def test_overrides_beat_file_values_and_defaults_fill_the_rest(tmp_path):
-    p = write(tmp_path, "seed: 5\ncondensation:\n  particles: 200\n  sigma: 2.5\n")
+    p = write(tmp_path, "seed: 5\ncondensation:\n  particles: 200\n  init_speed: 2.5\n")
     s = load_settings(p, {"condensation.particles": 800, "kalman.rho_f": 7.0})
     assert s.condensation.particles == 800  # override beats the file
-    assert s.condensation.sigma == 2.5  # the file's sibling survives the override
+    assert s.condensation.init_speed == 2.5  # the file's sibling survives the override
     assert s.seed == 5  # file value kept
     assert s.kalman.rho_f == 7.0  # override into a section the file does not mention
     assert s.kalman.kappa == Settings().kalman.kappa

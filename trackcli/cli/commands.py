@@ -433,7 +433,10 @@ def _video_overrides(fps, start, end, step) -> dict:
                    "(a few Gaussian modes refined by Gauss-Newton steps; settings in mht:), or coupled (a centre "
                    "and rays to parts matched by NCC; needs a structure template from draw --parts; settings in "
                    "coupled:).")
-@click.option("--particles", type=click.IntRange(min=1), help="CONDENSATION sample-set size N (condensation.particles, default 500).")
+@click.option("--particles", type=click.IntRange(min=1),
+              help="CONDENSATION sample-set size N (condensation.particles, default 500); the first frame "
+                   "has condensation.initial_particles samples (1500), falling to N over "
+                   "condensation.schedule_frames frames (4). Not with a tracker that has no such set.")
 @click.option("--threads", type=click.IntRange(min=0, max=256),
               help="Threads that score CONDENSATION's samples (condensation.threads; 0 = every core from 300 "
                    "samples up with the discriminant, 2000 with the numpy models, one below). The results "
@@ -477,8 +480,8 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, threads, 
     contour discriminant and the colour learned on the first frame; a frame is lost
     when it is below 0.5, and the summary line counts those frames.  While lost,
     CONDENSATION also looks for object-coloured regions in a square around where the
-    object was last held, growing with the time lost (condensation.reacquire_speed; 0:
-    the whole frame), and picks the object up again when it shows (condensation.reacquire).
+    object was last held, growing with the time lost (reacquire.speed; 0: the whole
+    frame), and picks the object up again when it shows (reacquire.enabled).
     """
     from trackcli.dynamics.model import load_model
     from trackcli.run.clips import clip_json, clip_name, track_clip
@@ -509,7 +512,10 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, threads, 
             summary = track_clip(clip, settings=settings, outdir=outdir, model=model, template=template,
                                  tracker=tracker, name=stem, rrd=not no_rrd, smooth=smooth,
                                  progress=lambda label, n: _progress(ctx, n, label), explicit=explicit,
-                                 inputs={"-c/--config": config})
+                                 inputs={"-c/--config": config},
+                                 options={o: k for o, k, v in (("--particles", "condensation.particles", particles),
+                                                               ("--threads", "condensation.threads", threads))
+                                          if v is not None})
         except TrackcliError as exc:
             if len(clips) == 1:
                 raise

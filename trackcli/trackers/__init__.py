@@ -7,7 +7,8 @@
   predict, weight (:func:`.condensation.weigh`), one step of AC Fig 12.6 (:func:`.condensation.step`),
   resampling schemes, initial sets.
 - :mod:`.base` — the tracker interface (:class:`.base.Tracker`: one frame in, one
-  :class:`.base.FrameResult` out) and the one frame loop, :func:`.base.run_tracker`.
+  :class:`.base.FrameResult` out; what it supports declared on its class) and the one frame
+  loop, :func:`.base.run_tracker`.
 - :mod:`.kalman_tracker` — the Kalman contour tracker (AC ch. 10) on that interface.
 - :mod:`.coupled` — coupled structures (003): a centre and rays to parts matched by NCC.
 - :mod:`.condensation_tracker` — CONDENSATION over curve shape (AC ch. 12) on that interface:
@@ -31,6 +32,11 @@ TRACKERS: dict[str, str] = {
     "mht": "trackcli.trackers.mht:MHTTracker",
     "coupled": "trackcli.trackers.coupled:CoupledTracker",
 }
+
+
+def trackers_that(declared: str) -> list[str]:
+    """The names of the trackers whose class declares ``declared`` true (e.g. ``"mixed_dynamics"``)."""
+    return [name for name in TRACKERS if getattr(tracker_class(name), declared)]
 
 
 def tracker_class(name: str) -> Any:
