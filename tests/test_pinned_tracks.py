@@ -21,31 +21,32 @@ from trackcli.cli import cli
 ROOT = Path(__file__).resolve().parents[1]
 PINNED = Path(__file__).resolve().parent / "data" / "pinned"
 
+
+
+def _run(clip: str, template: str, *more: str, seed: str = "3", end: str = "25") -> list[str]:
+    """The arguments of `trackcli track` on ``sample_data/CLIP.mp4`` with ``tests/data/pinned/TEMPLATE``."""
+    return [f"sample_data/{clip}.mp4", "--template", f"tests/data/pinned/{template}", *more,
+            "--end", end, "--seed", seed]
+
+
 # name of the pinned CSV -> arguments of `trackcli track` (paths relative to the repository)
 RUNS = {
-    "test.condensation.csv": ["sample_data/test.mp4", "--template", "tests/data/pinned/test.template.yaml",
-                              "--tracker", "condensation", "--end", "25", "--seed", "3"],
-    "test.kalman.csv": ["sample_data/test.mp4", "--template", "tests/data/pinned/test.template.yaml",
-                        "--tracker", "kalman", "--end", "25", "--seed", "3"],
-    "three_heads.condensation.csv": ["sample_data/three_heads.mp4", "--template",
-                                     "tests/data/pinned/three_heads.template.yaml", "--tracker", "condensation",
-                                     "--end", "25", "--seed", "5", "-c", "three-heads"],
-    "test.mht.csv": ["sample_data/test.mp4", "--template", "tests/data/pinned/test.template.yaml",
-                     "--tracker", "mht", "--end", "25", "--seed", "3"],
+    "test.condensation.csv": _run("test", "test.template.yaml", "--tracker", "condensation"),
+    "test.kalman.csv": _run("test", "test.template.yaml", "--tracker", "kalman"),
+    "three_heads.condensation.csv": _run("three_heads", "three_heads.template.yaml", "--tracker", "condensation",
+                                         "-c", "three-heads", seed="5"),
+    "test.mht.csv": _run("test", "test.template.yaml", "--tracker", "mht"),
     # a structure template (draw --parts face:205,125,32,35 --parts shirt_left:185,195,30,30
     # --parts shirt_right:245,195,30,30 on frame 0)
-    "test.coupled.csv": ["sample_data/test.mp4", "--template", "tests/data/pinned/test.structure.yaml",
-                         "--tracker", "coupled", "--end", "25", "--seed", "3"],
+    "test.coupled.csv": _run("test", "test.structure.yaml", "--tracker", "coupled"),
     # mixed-state dynamics (a motion label per sample; draw --box 22,52,36,36 on frame 0)
-    "bouncing_ball.condensation.csv": ["sample_data/bouncing_ball.mp4", "--model", "examples/bouncing_ball.mixed.yaml",
-                                       "--template", "tests/data/pinned/bouncing_ball.template.yaml",
-                                       "-c", "examples/bouncing_ball.settings.yaml", "--end", "30", "--seed", "2"],
+    "bouncing_ball.condensation.csv": _run("bouncing_ball", "bouncing_ball.template.yaml", "--model",
+                                           "examples/bouncing_ball.mixed.yaml", "-c",
+                                           "examples/bouncing_ball.settings.yaml", seed="2", end="30"),
     # the papers' observation models (a middle part of the name tells runs of one clip apart)
-    "test.clutter.condensation.csv": ["sample_data/test.mp4", "--template", "tests/data/pinned/test.template.yaml",
-                                      "-c", "tests/data/pinned/clutter.yaml", "--end", "25", "--seed", "3"],
-    "three_heads.truncated.mht.csv": ["sample_data/three_heads.mp4", "--template",
-                                      "tests/data/pinned/three_heads.template.yaml", "--tracker", "mht",
-                                      "-c", "tests/data/pinned/truncated.yaml", "--end", "25", "--seed", "5"],
+    "test.clutter.condensation.csv": _run("test", "test.template.yaml", "-c", "tests/data/pinned/clutter.yaml"),
+    "three_heads.truncated.mht.csv": _run("three_heads", "three_heads.template.yaml", "--tracker", "mht",
+                                          "-c", "tests/data/pinned/truncated.yaml", seed="5"),
 }
 
 #: name of a pinned smoothed CSV -> the run of :data:`RUNS` that writes it with ``--smooth``

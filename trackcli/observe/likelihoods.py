@@ -110,16 +110,12 @@ def truncated_log_likelihood(
 
     Parameters
     ----------
-    fimg : ndarray of shape (H, W)
-        Feature image from :func:`trackcli.observe.measure.feature_image`.
-    points, normals : ndarray of shape (..., M, 2)
-        Measurement points and unit normals of every hypothesis, e.g. (N, M, 2).
+    fimg, points, normals, threshold, polarity
+        As for :func:`log_likelihood`.
     h : float
         Search half-width ``delta``, pixels; also sets the penalty ``rho = h^2``.
     sigma : float
         Scale of the quadratic, pixels.
-    threshold, polarity
-        As for :func:`log_likelihood`.
 
     Returns
     -------

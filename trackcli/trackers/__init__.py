@@ -21,7 +21,6 @@
 
 from __future__ import annotations
 
-import importlib
 from typing import Any
 
 #: the trackers by name (``trackcli track --tracker NAME``): ``module:class`` of a
@@ -41,9 +40,6 @@ def trackers_that(declared: str) -> list[str]:
 
 def tracker_class(name: str) -> Any:
     """The :class:`~trackcli.trackers.base.Tracker` subclass called ``name``."""
-    from trackcli.errors import ConfigError
+    from trackcli.registry import lookup
 
-    if name not in TRACKERS:
-        raise ConfigError(f"tracker: expected one of {', '.join(TRACKERS)}, got {name!r}")
-    module, _, cls = TRACKERS[name].partition(":")
-    return getattr(importlib.import_module(module), cls)
+    return lookup(TRACKERS, name, "tracker")

@@ -27,7 +27,6 @@ its :class:`~trackcli.observe.observation.Observation` for their log-likelihoods
 
 from __future__ import annotations
 
-import importlib
 import math
 from abc import ABC, abstractmethod
 from collections import deque
@@ -223,10 +222,9 @@ class Tracker(ABC):
     @classmethod
     def make_smoother(cls, space: ShapeSpace, dynamics: Any) -> Any:
         """The smoother of :attr:`smoother` for one clip, or None."""
-        if cls.smoother is None:
-            return None
-        module, _, name = cls.smoother.partition(":")
-        return getattr(importlib.import_module(module), name)(space, dynamics)
+        from trackcli.registry import load
+
+        return None if cls.smoother is None else load(cls.smoother)(space, dynamics)
 
     def __init__(self, space: ShapeSpace, dynamics: Any, settings: Settings, rng: np.random.Generator | None = None,
                  *, X0: np.ndarray | None = None):

@@ -17,12 +17,13 @@ A new term: one module here with its :class:`Term` subclass, and one line in :da
 
 from __future__ import annotations
 
-import importlib
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
+
+from trackcli.registry import lookup
 
 #: the terms by name: ``module:class`` of a :class:`Term`, imported when first used; their
 #: log-likelihoods are added in this order
@@ -36,12 +37,7 @@ TERMS: dict[str, str] = {
 
 def term_class(name: str) -> type[Term]:
     """The :class:`Term` subclass called ``name`` (a key of :data:`TERMS`)."""
-    from trackcli.errors import ConfigError
-
-    if name not in TERMS:
-        raise ConfigError(f"observation term: expected one of {', '.join(TERMS)}, got {name!r}")
-    module, _, cls = TERMS[name].partition(":")
-    return getattr(importlib.import_module(module), cls)
+    return lookup(TERMS, name, "observation term")
 
 
 @dataclass(frozen=True, eq=False)
