@@ -136,7 +136,7 @@ def test_the_number_of_threads_does_not_change_the_track(tmp_path, monkeypatch):
 
 
 def test_the_discriminant_power_reaches_the_weights_and_leaves_the_papers_models_as_they_are(tmp_path, monkeypatch):
-    """``condensation.discriminant_power`` changes a default track; under the clutter model
+    """``observation.discriminant_power`` changes a default track; under the clutter model
     (AC eq 12.2) the weights are the likelihood itself whatever it says."""
     monkeypatch.chdir(ROOT)
     name = "test.condensation.csv"
@@ -145,7 +145,7 @@ def test_the_discriminant_power_reaches_the_weights_and_leaves_the_papers_models
                          "clutter": ["  likelihood: clutter"],
                          "clutter_tempered": ["  likelihood: clutter", "  discriminant_power: 0.2"]}.items():
         cfg = tmp_path / f"{label}.yaml"
-        cfg.write_text("condensation:\n" + "\n".join(lines) + "\n")
+        cfg.write_text("observation:\n" + "\n".join(lines) + "\n")
         out = tmp_path / label
         res = CliRunner().invoke(cli, ["-q", "track", *RUNS[name], "-c", str(cfg), "-o", str(out), "--no-rrd"])
         assert res.exit_code == 0, res.output

@@ -14,11 +14,10 @@ meaningless; 256 bins in all, so that mapping a frame is a byte lookup), give th
 ``L(c) = log p_fg(c) / p_bg(c)``, clipped to ``[-3, 3]``.  On grey footage hue and saturation
 carry nothing; the bins are then 32 grey levels × 8 levels of local texture (the standard
 deviation of the grey level over a Gaussian window of 2 px), so that a smooth face or ball is
-told from a wall or pavement of its own grey level.  Every frame is mapped to ``L`` once (a back-projection), and along
-each normal ``L`` is averaged at a few offsets inside and outside the curve; the colour term of
-normal ``i`` is ``c_i = (mean_inside L - mean_outside L) / 2``, in ``[-3, 3]``: positive when
-the curve separates object-coloured from background-coloured pixels.  The models are kept as
-learned on the first frame (no update), so they cannot drift onto the background.
+told from a wall or pavement of its own grey level.  Every frame is mapped to ``L`` once (a
+back-projection, :meth:`Appearance.colour_map`, or :class:`LazyColourMap` where it is read);
+the discriminant averages it along each normal.  The models are kept as learned on the first
+frame (no update), so they cannot drift onto the background.
 
 The frame's picture and light
 -----------------------------
@@ -125,7 +124,7 @@ class LazyColourMap:
     made under a lock, and marked made only after their values are written.  Colour frames
     only (the grey model's texture is not pixel by pixel).  With ``exposure``, the map of the
     frame brought back to the first frame's exposure
-    (:func:`trackcli.observe.scene.in_first_light`, pixel by pixel too).
+    (:func:`in_first_light`, pixel by pixel too).
     """
 
     BLOCK = 32

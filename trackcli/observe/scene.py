@@ -182,7 +182,7 @@ class StillScene:
         :data:`WORK_PIXELS` pixels, and so that a large object spans 32 to 64.
     area : (x0, y0, x1, y1), optional
         The picture between letterbox or pillarbox bars
-        (:func:`~trackcli.observe.discriminant.picture_area`): the bars are never judged either.
+        (:func:`~trackcli.observe.appearance.picture_area`): the bars are never judged either.
     """
 
     def __init__(self, first: np.ndarray, own: np.ndarray, size: float,

@@ -123,7 +123,7 @@ class FrameData:
     image: np.ndarray
     features: np.ndarray
     colour: np.ndarray | LazyColourMap | None = None
-    """The colour log-ratio map of the appearance model (:meth:`trackcli.observe.discriminant.Appearance.colour_map`);
+    """The colour log-ratio map of the appearance model (:meth:`trackcli.observe.appearance.Appearance.colour_map`);
     None: made when the frame is tracked."""
     still: np.ndarray | None = None
     """Where the frame kept the first frame's colours (:meth:`trackcli.observe.scene.StillScene.compare`);
