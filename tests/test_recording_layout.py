@@ -157,9 +157,9 @@ def test_series_sent_in_chunks_hold_every_frame_once(tmp_path, ellipse_clip, mon
     import csv
 
     from trackcli.settings import Settings
-    from trackcli.run import clips
+    from trackcli.run import sinks
 
-    monkeypatch.setattr(clips, "SERIES_CHUNK", 4)
+    monkeypatch.setattr(sinks, "SERIES_CHUNK", 4)
     tmpl = tmp_path / "e.yaml"
     run(["draw", ellipse_clip, "--ellipse", "70,60,28,36", "-o", tmpl], 0)
     run(["track", ellipse_clip, "--template", tmpl, "--particles", "50", "-o", tmp_path], 0)

@@ -24,7 +24,9 @@ from trackcli.trackers import TRACKERS
                    "and rays to parts matched by NCC; needs a structure template from draw --parts; settings in "
                    "coupled:).")
 @click.option("--particles", type=click.IntRange(min=1),
-              help="CONDENSATION sample-set size N (condensation.particles, default 500).")
+              help="CONDENSATION sample-set size N (condensation.particles, default 500); the first frame "
+                   "has condensation.initial_particles samples (1500), falling to N over "
+                   "condensation.schedule_frames frames (4). Not with a tracker that has no such set.")
 @click.option("--threads", type=click.IntRange(min=0, max=256),
               help="Threads that score CONDENSATION's samples (condensation.threads; 0 = every core from 300 "
                    "samples up with the discriminant, 2000 with the numpy models, one below). The results "
@@ -67,8 +69,8 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, threads, 
     contour discriminant and the colour learned on the first frame; a frame is lost
     when it is below 0.5, and the summary line counts those frames.  While lost,
     CONDENSATION also looks for object-coloured regions in a square around where the
-    object was last held, growing with the time lost (condensation.reacquire_speed; 0:
-    the whole frame), and picks the object up again when it shows (condensation.reacquire).
+    object was last held, growing with the time lost (reacquire.speed; 0: the whole
+    frame), and picks the object up again when it shows (reacquire.enabled).
     """
     from trackcli.run.tracking import track_clips
 
@@ -79,7 +81,10 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, threads, 
     failures = 0
     for outcome in track_clips(clips, config=config, overrides=overrides, outdir=outdir, model=model,
                                template=template, tracker=tracker, rrd=not no_rrd, smooth=smooth,
-                               progress=bars(ctx)):
+                               progress=bars(ctx),
+                               options={o: k for o, k, v in (("--particles", "condensation.particles", particles),
+                                                             ("--threads", "condensation.threads", threads))
+                                        if v is not None}):
         if outcome.error is not None:
             failures += 1
             click.echo(f"Error: {outcome.error}", err=True)

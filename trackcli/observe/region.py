@@ -15,6 +15,11 @@ prior (AC ch. 8's posterior fit, here pixel by pixel):
 
 The refined outline is the boundary of that region.  Where colour does not tell object from
 background the prior alone decides and the outline is the estimate's.
+
+Its place in a run: a stage after each tracker step (:func:`trackcli.trackers.base.run_tracker`),
+which draws the outline (the CSV's outline columns, the recording's ``video/outline``) and
+changes nothing of the estimate, its weights or the next frame's prediction.  The terms that
+weigh the tracker's hypotheses are the observation model's (:mod:`trackcli.observe.terms`).
 """
 
 from __future__ import annotations
@@ -233,3 +238,11 @@ class OutlineRefiner:
         fit = refine(image, est, self.model, sigma=s.prior_width, others=others)
         self.last = fit.outline if fit.outline is not None else est
         return fit
+
+
+def outline_refiner(settings, space) -> OutlineRefiner | None:
+    """The run's :class:`OutlineRefiner` (``outline.refine``), or None: refinement off, no
+    outline columns to draw (``output.outline_points`` 0), or an open curve."""
+    if settings.outline.refine and settings.output.outline_points and space.basis.closed:
+        return OutlineRefiner(settings.outline)
+    return None

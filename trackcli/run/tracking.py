@@ -43,12 +43,15 @@ def clip_names(clips: Sequence[str]) -> list[str]:
 def track_clips(clips: Sequence[str], *, config: str | None, overrides: dict[str, Any], outdir: str,
                 model: str | None = None, template: str | None = None, tracker: str = "condensation",
                 rrd: bool = True, smooth: bool = False,
-                progress: Callable[[str, int], ContextManager[Any]] | None = None) -> Iterator[ClipOutcome]:
+                progress: Callable[[str, int], ContextManager[Any]] | None = None,
+                options: dict[str, str] | None = None) -> Iterator[ClipOutcome]:
     """Track each of ``clips`` into ``outdir`` (named by :func:`clip_names`, which must differ).
 
     The settings are the configuration ``config`` overridden by ``overrides`` (dotted keys,
     ``None`` for an option not given); with a ``model``, the measurement settings not set
-    there are the model's own (see :func:`trackcli.run.clips.track_clip`).
+    there are the model's own (see :func:`trackcli.run.clips.track_clip`).  ``options``: the
+    command-line options given, by name, with the setting each one sets; one that the tracker
+    does not read is refused.
     """
     from trackcli.dynamics.model import load_model
     from trackcli.run.clips import track_clip
@@ -75,7 +78,7 @@ def track_clips(clips: Sequence[str], *, config: str | None, overrides: dict[str
         try:
             summary = track_clip(clip, settings=settings, outdir=outdir, model=model, template=template,
                                  tracker=tracker, name=name, rrd=rrd, smooth=smooth, progress=progress,
-                                 explicit=explicit, inputs={"-c/--config": config})
+                                 explicit=explicit, inputs={"-c/--config": config}, options=options)
         except TrackcliError as exc:
             if len(clips) == 1:
                 raise

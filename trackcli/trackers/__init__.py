@@ -7,7 +7,8 @@
   predict, weight (:func:`.condensation.weigh`), one step of AC Fig 12.6 (:func:`.condensation.step`),
   resampling schemes, initial sets.
 - :mod:`.base` — the tracker interface (:class:`.base.Tracker`: one frame in, one
-  :class:`.base.FrameResult` out) and the one frame loop, :func:`.base.run_tracker`.
+  :class:`.base.FrameResult` out; what it supports declared on its class) and the one frame
+  loop, :func:`.base.run_tracker`.
 - :mod:`.kalman_tracker` — the Kalman contour tracker (AC ch. 10) on that interface.
 - :mod:`.coupled` — coupled structures (003): a centre and rays to parts matched by NCC.
 - :mod:`.condensation_tracker` — CONDENSATION over curve shape (AC ch. 12) on that interface:
@@ -20,7 +21,6 @@
 
 from __future__ import annotations
 
-import importlib
 from typing import Any
 
 #: the trackers by name (``trackcli track --tracker NAME``): ``module:class`` of a
@@ -33,11 +33,13 @@ TRACKERS: dict[str, str] = {
 }
 
 
+def trackers_that(declared: str) -> list[str]:
+    """The names of the trackers whose class declares ``declared`` true (e.g. ``"mixed_dynamics"``)."""
+    return [name for name in TRACKERS if getattr(tracker_class(name), declared)]
+
+
 def tracker_class(name: str) -> Any:
     """The :class:`~trackcli.trackers.base.Tracker` subclass called ``name``."""
-    from trackcli.errors import ConfigError
+    from trackcli.registry import lookup
 
-    if name not in TRACKERS:
-        raise ConfigError(f"tracker: expected one of {', '.join(TRACKERS)}, got {name!r}")
-    module, _, cls = TRACKERS[name].partition(":")
-    return getattr(importlib.import_module(module), cls)
+    return lookup(TRACKERS, name, "tracker")
