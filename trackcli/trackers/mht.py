@@ -14,7 +14,7 @@ modes (a piecewise-Gaussian density); each frame (the steps are :mod:`trackcli.t
    normal, :func:`trackcli.observe.measure.kalman_features`, summed into ``Z, S`` by
    :func:`trackcli.observe.measure.aggregate`) made at the seed's current curve with the
    gates of its mode's prediction, then
-   assimilated against the seed's prior mode (:func:`trackcli.trackers.kalman.assimilate`);
+   assimilated against the seed's prior mode (:func:`trackcli.dynamics.kalman.assimilate`);
 4. each refined curve is weighted by its prior mode's weight and by the observation model
    of CONDENSATION (``condensation.likelihood``: the discriminant by default);
 5. curves within ``mht.merge_distance`` px (RMS displacement) of a heavier one are merged
@@ -46,7 +46,8 @@ from trackcli.observe.models import observation_model
 from trackcli.observe.presence import Presence
 from trackcli.shapes.outline import contour_summary, measurement_sampler
 from trackcli.shapes.shape_space import ShapeSpace
-from trackcli.trackers import kalman, modes
+from trackcli.dynamics import kalman
+from trackcli.trackers import modes
 from trackcli.trackers.base import FrameData, FrameResult, Tracker
 from trackcli.trackers.condensation_tracker import translation_jumps
 from trackcli.trackers.kalman_tracker import kalman_sigma
