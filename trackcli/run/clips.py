@@ -32,7 +32,8 @@ from trackcli.errors import ConfigError, DataError, TemplateError
 from trackcli.io.outputs import output_dir, refuse_overwriting_inputs, write_text
 from trackcli.shapes.outline import contour_summary
 from trackcli.shapes.shape_space import ShapeSpace
-from trackcli.io.tracks import DrawnBox, OutlineColumns, TrackWriter
+from trackcli.io.tracks import DrawnBox, TrackWriter
+from trackcli.run.outline_columns import OutlineColumns
 from trackcli.run.background import BackgroundRecorder, DecodeAhead
 from trackcli.trackers import tracker_class
 
