@@ -64,7 +64,7 @@ first ``n_frames`` frames of the full clip.  Videos are written with OpenCV's VP
 from __future__ import annotations
 
 from trackcli.sample_data.common import N_OUTLINE_POINTS, CLIP_NAMES, DEFAULT_SEED, FPS, FRAME_SIZE, TRUTH_COLUMNS
-from trackcli.sample_data.geometry import circle_outline, head_and_shoulders, polygon_area, polygon_centroid, similarity, true_outline
+from trackcli.sample_data.geometry import circle_outline, head_and_shoulders, place_outlines, polygon_area, polygon_centroid, similarity, true_outline
 from trackcli.sample_data.truth import Outline, Truth, load_outline, load_truth
 from trackcli.sample_data.write import clip_truth, default_n_frames, generate, make_bouncing_ball, make_test, make_three_heads, make_train, render_frames, write_clip
 
@@ -88,6 +88,7 @@ __all__ = [
     "make_test",
     "make_three_heads",
     "make_train",
+    "place_outlines",
     "polygon_area",
     "polygon_centroid",
     "render_frames",
