@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from trackcli.dynamics.ar2 import AR2, oscillator_coefficients
+from trackcli.dynamics.ar2 import AR2
+from trackcli.dynamics.handset import oscillator_coefficients
 from trackcli.dynamics.em import InformationSequence, expected_statistics, fit_ar2_em
 from trackcli.errors import DataError
 from trackcli.dynamics.learning import AR2Statistics, fit_ar2
