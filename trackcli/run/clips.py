@@ -533,7 +533,7 @@ def mixed_dynamics_on(mm: Any, template: Any, template_path: str | os.PathLike[s
     shape-space) are placed by ``template`` as a single learned model is, or without one
     start where their own template was drawn.  A hand-written model needs a template.
     """
-    from trackcli.dynamics.mixed import build_dynamics
+    from trackcli.dynamics.mixed_dynamics import build_dynamics
     from trackcli.dynamics.model import place_dynamics, place_space
 
     if mm.space is None:
