@@ -53,6 +53,8 @@ coverage, so the rendered edge lies within a few hundredths of a pixel of the tr
 
 ``<clip>.outline.json`` holds the base outline (``points``), ``format: 1``, the clip's frame
 rate, size, frame count and seed, which object is which, and the parameters of the motion.
+:func:`true_outline` places it for one row of the truth, :func:`place_outlines` for every row
+(as ``trackcli eval`` does, through :mod:`trackcli.run.truth`).
 
 Determinism: the truth and outline files depend only on the seed and the frame count and
 are byte-identical between runs; each clip draws from its own stream
