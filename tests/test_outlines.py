@@ -33,8 +33,16 @@ def tracked(tmp_path, ellipse_clip):
     tmpl = tmp_path / "ellipse.yaml"
     run(["draw", ellipse_clip, "--ellipse", "70,60,28,36", "-o", tmpl], 0)
     out = tmp_path / "out"
-    run(["track", ellipse_clip, "--template", tmpl, "--tracker", "kalman", "--no-rrd", "-o", out], 0)
+    run(["track", ellipse_clip, "--template", tmpl, "--tracker", "kalman", "--no-rrd", "-c", estimate_only(tmp_path),
+         "-o", out], 0)
     return out / "ellipse.kalman.csv"
+
+
+def estimate_only(folder, extra: str = ""):
+    """A configuration whose outline columns are the estimate's own curve (no refinement)."""
+    cfg = folder / "estimate-only.yaml"
+    cfg.write_text("outline: {refine: false}\n" + extra)
+    return cfg
 
 
 # ---------------------------------------------------------------------------------------------
@@ -42,6 +50,8 @@ def tracked(tmp_path, ellipse_clip):
 
 
 def test_outline_columns_follow_the_other_columns_and_agree_with_them(tracked):
+    """Without refinement the outline columns are the estimate's curve, whose centroid and box
+    the other columns report."""
     with open(tracked, newline="") as fh:
         rows = list(csv.DictReader(fh))
         fh.seek(0)
@@ -332,11 +342,11 @@ def test_a_track_from_a_box_reports_the_drawn_box_and_output_box_outline_the_con
     run(["draw", ellipse_clip, "--box", ",".join(f"{v:g}" for v in box), "-o", tmpl], 0)
     assert load_template(tmpl).box == box
     for tracker in ("kalman", "condensation"):
-        run(["track", ellipse_clip, "--template", tmpl, "--tracker", tracker, "--no-rrd", "-o", tmp_path / "a"], 0)
+        run(["track", ellipse_clip, "--template", tmpl, "--tracker", tracker, "--no-rrd", "-c", estimate_only(tmp_path),
+             "-o", tmp_path / "a"], 0)
         first = _first_box(tmp_path / "a" / f"ellipse.{tracker}.csv")
         np.testing.assert_allclose(first, box, atol=5.0)  # the first estimate is near the template, not on it
-    cfg = tmp_path / "outline.yaml"
-    cfg.write_text("output:\n  box: outline\n")
+    cfg = estimate_only(tmp_path, "output:\n  box: outline\n")
     run(["track", ellipse_clip, "--template", tmpl, "--tracker", "kalman", "--no-rrd", "-c", cfg, "-o", tmp_path / "b"], 0)
     own = _first_box(tmp_path / "b" / "ellipse.kalman.csv")
     assert np.abs(own - np.array(box))[2:].min() > 10  # the segmented outline is well inside the box
@@ -350,7 +360,8 @@ def test_a_track_from_a_box_reports_the_drawn_box_and_output_box_outline_the_con
     ell = tmp_path / "ell.yaml"
     run(["draw", ellipse_clip, "--ellipse", "70,60,28,36", "-o", ell], 0)
     assert load_template(ell).box is None
-    run(["track", ellipse_clip, "--template", ell, "--tracker", "kalman", "--no-rrd", "-o", tmp_path / "c"], 0)
+    run(["track", ellipse_clip, "--template", ell, "--tracker", "kalman", "--no-rrd", "-c", estimate_only(tmp_path),
+         "-o", tmp_path / "c"], 0)
     np.testing.assert_allclose(_first_box(tmp_path / "c" / "ellipse.kalman.csv"),
                                outline_box(tmp_path / "c" / "ellipse.kalman.csv"), atol=0.6)
 
@@ -385,7 +396,8 @@ def test_an_outline_reaching_beyond_the_frame_has_its_box_clipped_and_its_outlin
     outline columns the whole curve."""
     tmpl = tmp_path / "edge.yaml"
     run(["draw", ellipse_clip, "--ellipse", "12,60,28,36", "-o", tmpl], 0)
-    run(["track", ellipse_clip, "--template", tmpl, "--tracker", "kalman", "--no-rrd", "-o", tmp_path], 0)
+    run(["track", ellipse_clip, "--template", tmpl, "--tracker", "kalman", "--no-rrd", "-c", estimate_only(tmp_path),
+         "-o", tmp_path], 0)
     csv_path = tmp_path / "ellipse.kalman.csv"
     _, outlines, _ = read_outlines(csv_path)
     with open(csv_path, newline="") as fh:
@@ -401,3 +413,28 @@ def test_an_outline_reaching_beyond_the_frame_has_its_box_clipped_and_its_outlin
             assert x == 0.0
             assert x + w == pytest.approx(hi[0], abs=0.01)
     assert beyond == CLIP_FRAMES
+
+
+def test_the_refined_outline_fits_the_object_at_least_as_well_as_the_estimate(tmp_path, ellipse_clip):
+    """With ``outline.refine`` (the default) the outline columns are refit in the full image: on
+    the drifting ellipse they cover the true region at least as well as the estimate's curve."""
+    from conftest import CLIP_DRIFT, CLIP_ELLIPSE, CLIP_SIZE
+    from trackcli.run.masks import outline_mask, region_similarity
+
+    tmpl = tmp_path / "e.yaml"
+    run(["draw", ellipse_clip, "--ellipse", "66,62,24,30", "-o", tmpl], 0)  # a little off and small
+    run(["track", ellipse_clip, "--template", tmpl, "--tracker", "kalman", "--no-rrd", "-o", tmp_path / "r"], 0)
+    run(["track", ellipse_clip, "--template", tmpl, "--tracker", "kalman", "--no-rrd", "-c", estimate_only(tmp_path),
+         "-o", tmp_path / "e"], 0)
+    _, refined, _ = read_outlines(tmp_path / "r" / "ellipse.kalman.csv")
+    _, estimate, _ = read_outlines(tmp_path / "e" / "ellipse.kalman.csv")
+    w, h = CLIP_SIZE
+    cx, cy, a, b = CLIP_ELLIPSE
+    j_ref, j_est = [], []
+    for k in range(CLIP_FRAMES):
+        truth = np.zeros((h, w), np.uint8)
+        cv2.ellipse(truth, ((cx + CLIP_DRIFT * k, cy), (2 * a, 2 * b), 0.0), 1, -1)
+        j_ref.append(region_similarity(outline_mask(refined[k], (h, w)), truth > 0))
+        j_est.append(region_similarity(outline_mask(estimate[k], (h, w)), truth > 0))
+    assert min(j_ref) > 0.9, j_ref
+    assert np.mean(j_ref) >= np.mean(j_est) - 0.01, (j_ref, j_est)

@@ -11,17 +11,15 @@ import json
 import logging
 import math
 
+from typing import TYPE_CHECKING
+
 import click
 
-from typing import TYPE_CHECKING
+from trackcli.cli.common import is_quiet
+from trackcli.cli.options import json_option, outdir_option, quiet_option
 
 if TYPE_CHECKING:  # the batch machinery (numpy, OpenCV) loads when a batch runs, not for --help
     from trackcli.run import batch
-
-
-def _quiet(ctx: click.Context, quiet: bool) -> bool:
-    root = ctx.find_root().obj
-    return quiet or bool(root and root.get("quiet"))
 
 
 @click.command("batch")
@@ -31,12 +29,10 @@ def _quiet(ctx: click.Context, quiet: bool) -> bool:
 @click.option("--scheduler", metavar="ADDRESS",
               help="Run the clips on a Dask cluster (e.g. tcp://host:8786) whose workers see the same "
                    "paths; needs pip install 'trackcli[dask]'.")
-@click.option("-o", "--outdir", type=click.Path(file_okay=False), default="trackcli-out", show_default=True,
-              help="Output folder: one subfolder per clip, and summary.json.")
+@outdir_option("Output folder: one subfolder per clip, and summary.json.")
 @click.option("--force", is_flag=True, help="Run clips again even when their outputs are complete and current.")
-@click.option("--json", "as_json", is_flag=True,
-              help="JSON lines on stdout: one object per clip (kind: clip), then one summary (kind: summary).")
-@click.option("-q", "--quiet", is_flag=True, help="No progress lines on stderr (failed clips are still reported).")
+@json_option("JSON lines on stdout: one object per clip (kind: clip), then one summary (kind: summary).")
+@quiet_option("No progress lines on stderr (failed clips are still reported).")
 @click.pass_context
 def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet):
     """Track (and score) every clip listed in MANIFEST, a YAML file.
@@ -63,7 +59,7 @@ def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet):
     """
     if scheduler and workers:
         raise click.UsageError("give --jobs (local processes) or --scheduler (Dask), not both")
-    quiet = _quiet(ctx, quiet)
+    quiet = quiet or is_quiet(ctx)
     if quiet:
         logging.getLogger("trackcli").setLevel(logging.ERROR)
     from trackcli.run import batch

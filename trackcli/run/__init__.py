@@ -9,4 +9,12 @@
 - :mod:`.outline_columns` — the outline points of each row of a track CSV.
 - :mod:`.render` — overlays drawn on frames, videos and contact sheets.
 - :mod:`.plots` — plots of scores.
+
+What each command does, for its module under :mod:`trackcli.cli` to call:
+
+- :mod:`.drawing` (``draw``), :mod:`.tracking` (``track``), :mod:`.learn` (``learn``),
+  :mod:`.model_report` (``inspect``), :mod:`.simulation` (``simulate``), :mod:`.scoring`
+  (``eval``), :mod:`.rendering` (``render``);
+- :mod:`.options` — settings from a command's options, and :class:`.options.OptionError`
+  for options that do not go together.
 """

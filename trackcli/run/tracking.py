@@ -1,0 +1,85 @@
+"""``trackcli track``: one tracker run over each of several clips.
+
+:func:`track_clips` reads the settings (configuration and options), checks the files every
+clip shares once, then runs :func:`trackcli.run.clips.track_clip` on each clip in turn and
+yields what became of it.  With several clips, a clip that fails is reported in its
+:class:`ClipOutcome` and the others still run; a single clip's error is raised.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any, Callable, ContextManager, Iterator, Sequence
+
+from trackcli.errors import TrackcliError
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class ClipOutcome:
+    """One clip of :func:`track_clips`: its summary, or the one-line error that stopped it."""
+
+    clip: str
+    name: str
+    summary: Any = None
+    error: str | None = None
+
+    def json(self, tracker: str) -> dict[str, Any]:
+        """The clip's object of ``track --json`` (:func:`trackcli.run.clips.clip_json`)."""
+        from trackcli.run.clips import clip_json
+
+        return clip_json(self.name, self.clip, tracker, self.summary, error=self.error)
+
+
+def clip_names(clips: Sequence[str]) -> list[str]:
+    """The output prefix of each clip (:func:`trackcli.run.clips.clip_name`)."""
+    from trackcli.run.clips import clip_name
+
+    return [clip_name(c) for c in clips]
+
+
+def track_clips(clips: Sequence[str], *, config: str | None, overrides: dict[str, Any], outdir: str,
+                model: str | None = None, template: str | None = None, tracker: str = "condensation",
+                rrd: bool = True, smooth: bool = False,
+                progress: Callable[[str, int], ContextManager[Any]] | None = None) -> Iterator[ClipOutcome]:
+    """Track each of ``clips`` into ``outdir`` (named by :func:`clip_names`, which must differ).
+
+    The settings are the configuration ``config`` overridden by ``overrides`` (dotted keys,
+    ``None`` for an option not given); with a ``model``, the measurement settings not set
+    there are the model's own (see :func:`trackcli.run.clips.track_clip`).
+    """
+    from trackcli.dynamics.model import load_model
+    from trackcli.run.clips import track_clip
+    from trackcli.run.options import OptionError, explicit_keys, given, settings_from
+    from trackcli.shapes.template import load_template
+
+    settings = settings_from(config, overrides)
+    explicit = explicit_keys(config, overrides) if model else None
+    shown = [f"{k}={v}" for k, v in given(overrides).items()]
+    log.info("settings: %s%s%s", f"config {config}" if config else "the defaults",
+             f", options {', '.join(shown)}" if shown else "", f"; dynamics and shape-space from model {model}"
+             if model else "")
+    names = clip_names(clips)
+    if len(set(names)) != len(names):
+        raise OptionError("two clips have the same name; run them into different --outdir folders")
+    # files shared by every clip are checked once, before any clip runs
+    if model:
+        from trackcli.dynamics.mixed import is_mixed_file, load_mixed
+
+        load_mixed(model) if is_mixed_file(model) else load_model(model)
+    if template:
+        load_template(template)
+    for clip, name in zip(clips, names):
+        try:
+            summary = track_clip(clip, settings=settings, outdir=outdir, model=model, template=template,
+                                 tracker=tracker, name=name, rrd=rrd, smooth=smooth, progress=progress,
+                                 explicit=explicit, inputs={"-c/--config": config})
+        except TrackcliError as exc:
+            if len(clips) == 1:
+                raise
+            message = str(exc)
+            yield ClipOutcome(clip, name, error=message if message.startswith(str(clip)) else f"{clip}: {message}")
+            continue
+        yield ClipOutcome(clip, name, summary)
