@@ -19,13 +19,13 @@ independent of each other).  Reading from low to high:
 - ``trackcli.run``: what a command runs (a clip, a batch, a training cycle, a score);
 - ``trackcli.cli``: the commands.
 
-Besides, the modules must not import each other in a circle, two heavy libraries stay in
-one place each (``rerun`` in ``trackcli.io.recording``, ``click`` in ``trackcli.cli``), and
-no module is longer than :data:`MAX_LINES`.
+Besides, the modules must not import each other in a circle, and two heavy libraries stay
+in one place each: ``rerun`` in ``trackcli.io.recording``, ``click`` in ``trackcli.cli``.
+(How long a module may be is ``tests/test_layout.py``'s business.)
 
-What breaks these rules today is listed, with the reason, in :data:`EXCEPTIONS`,
-:data:`CYCLES` and :data:`LONG`, to be removed by whoever owns that code; an entry that no
-longer applies fails the test too, so the lists only shrink.
+What breaks these rules today is listed, with the reason, in :data:`EXCEPTIONS` and
+:data:`CYCLES`, to be removed by whoever owns that code; an entry that no longer occurs fails
+the test too, so the lists only shrink.
 """
 
 from __future__ import annotations
@@ -64,20 +64,6 @@ CYCLES: dict[tuple[str, ...], str] = {
     ("trackcli.observe.discriminant", "trackcli.observe.scene"):
         "scene reads discriminant.is_grey, discriminant reads scene's first-light matrix; "
         "being broken by the engineer who owns observe/",
-}
-
-#: the longest a module may be, in lines
-MAX_LINES = 700
-
-#: modules longer than that today -> why (each is being split by the engineer who owns it)
-LONG: dict[str, str] = {
-    "trackcli.cli.commands": "every command in one module; one module per command under cli/ is under way",
-    "trackcli.io.recording": "the recording and its blueprints; to be split by its owner",
-    "trackcli.run.batch": "manifests, local and Dask runs; to be split by its owner",
-    "trackcli.run.clips": "run_clip's sinks are being separated (CSV, recording, smoother, progress)",
-    "trackcli.shapes.draw": "segmentation is being moved out of shapes/draw.py",
-    "trackcli.observe.discriminant": "to be split by the owner of observe/ (with the cycle above)",
-    "trackcli.observe.measure": "to be split by the owner of observe/",
 }
 
 #: third-party packages allowed only in these parts of trackcli
@@ -223,14 +209,6 @@ def test_heavy_libraries_stay_in_their_module(library):
     assert users, f"no module imports {library}: update CONFINED"
     outside = [m for m in users if not any(m == a or m.startswith(a + ".") for a in allowed)]
     assert not outside, f"{library} imported outside {', '.join(allowed)}: {', '.join(outside)}"
-
-
-def test_no_module_is_longer_than_the_limit():
-    lengths = {m: len(p.read_text(encoding="utf-8").splitlines()) for m, p in MODULES.items()}
-    long = sorted(m for m, n in lengths.items() if n > MAX_LINES and m not in LONG)
-    assert not long, f"modules over {MAX_LINES} lines: " + ", ".join(f"{m} ({lengths[m]})" for m in long)
-    done = sorted(m for m in LONG if lengths.get(m, 0) <= MAX_LINES)
-    assert not done, "now short enough (or gone), remove from LONG: " + ", ".join(done)
 
 
 def test_the_checks_see_imports_inside_functions_and_relative_ones(tmp_path):
