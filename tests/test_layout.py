@@ -15,13 +15,9 @@ COMMAND_LINES = 300
 MODULE_LINES = 700
 #: modules over MODULE_LINES being split now; each leaves the list when it is split
 TOO_LONG_FOR_NOW = {
-    "dynamics/ar2.py",
-    "dynamics/mixed.py",
     "io/recording.py",
     "run/batch.py",
     "shapes/draw.py",
-    "shapes/shape_space.py",
-    "shapes/spline.py",
 }
 
 

@@ -15,9 +15,9 @@ from hypothesis import strategies as st
 from conftest import REPO, sample_clip
 from trackcli.cli import cli
 from trackcli.dynamics.ar2 import AR2
-from trackcli.dynamics.mixed import (Bounce, MixedDynamics, MixedPrediction, check_transitions, learn_mixed,
-                                     load_mixed, mixed_from_dict, read_label_ranges, stationary_distribution,
-                                     transitions_from_labels)
+from trackcli.dynamics.mixed import (check_transitions, learn_mixed, load_mixed, mixed_from_dict, read_label_ranges,
+                                     stationary_distribution, transitions_from_labels)
+from trackcli.dynamics.mixed_dynamics import Bounce, MixedDynamics, MixedPrediction
 from trackcli.errors import ModelError
 from trackcli.settings import Settings
 from trackcli.run.bounces import detections, match, run_experiment, true_bounces

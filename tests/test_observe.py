@@ -277,7 +277,7 @@ def test_pixel_units_keep_the_books_settings():
 
 
 def test_damped_velocity_translation_has_a_free_position():
-    from trackcli.dynamics.ar2 import oscillator_coefficients
+    from trackcli.dynamics.handset import oscillator_coefficients
 
     a1, a2, b0 = oscillator_coefficients(0.0, 4.0, None, 0.04, gamma0=5.0)
     assert a1 + a2 == pytest.approx(1.0)  # an eigenvalue at 1: no pull back to a mean position

@@ -1,4 +1,4 @@
-"""Tests for trackcli.shapes.spline: basis, evaluation, normals, metric, fitting."""
+"""Tests for trackcli.shapes.spline (basis, evaluation, normals, metric) and trackcli.shapes.fit."""
 
 from __future__ import annotations
 
@@ -8,13 +8,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from trackcli.errors import ConfigError, DataError
+from trackcli.shapes.fit import fit
 from trackcli.shapes.spline import (
     CurveSampler,
     SplineBasis,
     curve_area_centroid,
     curve_centre,
     dense_polygon,
-    fit,
     polygon_area_centroid,
     signed_area,
 )

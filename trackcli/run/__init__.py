@@ -5,6 +5,8 @@
 - :mod:`.batch` — manifests of clips run in worker processes or on a Dask cluster.
 - :mod:`.train` — the track → learn cycle on training clips.
 - :mod:`.evaluate` — scores against ground truth (centre error, IoU, precision, success).
+- :mod:`.truth` — ground truth as ``eval`` reads it, with the true outlines of sample clips.
+- :mod:`.outline_columns` — the outline points of each row of a track CSV.
 - :mod:`.render` — overlays drawn on frames, videos and contact sheets.
 - :mod:`.plots` — plots of scores.
 

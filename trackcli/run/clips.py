@@ -33,7 +33,8 @@ from trackcli.dynamics.ar2 import AR2
 from trackcli.dynamics.mixed import is_mixed_file
 from trackcli.errors import ConfigError, DataError, TemplateError
 from trackcli.io.outputs import output_dir, refuse_overwriting_inputs, write_text
-from trackcli.io.tracks import DrawnBox, OutlineColumns
+from trackcli.io.tracks import DrawnBox
+from trackcli.run.outline_columns import OutlineColumns
 from trackcli.run.background import DecodeAhead
 from trackcli.run.sinks import Progress, RecordingSink, Sink, SmootherSink, Tally, TrackCsv, feed
 from trackcli.settings import Settings, dump_yaml, to_dict
@@ -380,7 +381,7 @@ def mixed_dynamics_on(mm: Any, template: Any, template_path: str | os.PathLike[s
     shape-space) are placed by ``template`` as a single learned model is, or without one
     start where their own template was drawn.  A hand-written model needs a template.
     """
-    from trackcli.dynamics.mixed import build_dynamics
+    from trackcli.dynamics.mixed_dynamics import build_dynamics
     from trackcli.dynamics.model import place_dynamics, place_space
 
     if mm.space is None:

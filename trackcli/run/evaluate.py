@@ -76,7 +76,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from trackcli.errors import ConfigError, DataError
-from trackcli.io.truth import TRUTH_FILE_NAMES, GroundTruth, PathLike, Track, box_centres, load_track, load_truth
+from trackcli.io.truth import TRUTH_FILE_NAMES, GroundTruth, PathLike, Track, box_centres, load_track
+from trackcli.run.truth import load_truth
 
 log = logging.getLogger(__name__)
 

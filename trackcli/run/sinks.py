@@ -19,7 +19,8 @@ from typing import Any, Callable, Iterator, Sequence
 import numpy as np
 
 from trackcli.errors import DataError
-from trackcli.io.tracks import DrawnBox, OutlineColumns, TrackWriter
+from trackcli.io.tracks import DrawnBox, TrackWriter
+from trackcli.run.outline_columns import OutlineColumns
 from trackcli.run.background import BackgroundRecorder
 
 log = logging.getLogger(__name__)

@@ -740,7 +740,7 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
     :data:`REFIT_GAIN` better than the hull: the fingers of an open hand rather than the hull
     about them, which takes in the background between them.
     """
-    from trackcli.shapes.spline import fit
+    from trackcli.shapes.fit import fit
     from trackcli.shapes.template import Template
 
     outline = np.asarray(outline, dtype=float)

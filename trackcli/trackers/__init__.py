@@ -1,8 +1,8 @@
-"""Trackers: filter steps, and the trackers built on them.
+"""Trackers: sample-set steps, and the trackers built on them.
 
-- :mod:`.kalman` — the Kalman filter for AR(2) dynamics: predict and assimilate
-  (AC Fig 10.3, :func:`.kalman.predict`, :func:`.kalman.assimilate`), steady states,
-  validation gates.
+The Kalman filter's steps and the RTS smoother are in :mod:`trackcli.dynamics.kalman` and
+:mod:`trackcli.dynamics.rts`, where learning uses them too.
+
 - :mod:`.condensation` — CONDENSATION's sample sets: select (:func:`.condensation.resample`),
   predict, weight (:func:`.condensation.weigh`), one step of AC Fig 12.6 (:func:`.condensation.step`),
   resampling schemes, initial sets.
@@ -15,8 +15,8 @@
   initial sets, jumps in the motion prior, re-acquisition after loss.
 - :mod:`.modes` and :mod:`.mht` — mode-based multiple hypotheses (Cham & Rehg 1999): a few
   Gaussian modes, seeds from the prior refined by Gauss–Newton steps, merged and weighted.
-- :mod:`.smoothing` — Rauch–Tung–Striebel smoothing of a Kalman track and
-  forward-filtering backward-smoothing of a particle track.
+- :mod:`.smoothing` — smoothing a track as it is made: Rauch–Tung–Striebel over a Kalman
+  track and forward-filtering backward-smoothing of a particle track.
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ from typing import Any, Iterable, Iterator
 
 import numpy as np
 
-from trackcli.dynamics.mixed import MixedDynamics, MixedPrediction
+from trackcli.dynamics.mixed_dynamics import MixedDynamics, MixedPrediction
 from trackcli.errors import ConfigError
 from trackcli.observe import measure, reacquire
 from trackcli.observe.discriminant import normals_with_features
@@ -201,10 +201,10 @@ class CondensationTracker(Tracker):
     On the first frame the initial samples are weighted without prediction; afterwards every
     frame is select → predict → weight.
 
-    With mixed-state dynamics (:class:`~trackcli.dynamics.mixed.MixedDynamics`, 001 §8)
+    With mixed-state dynamics (:class:`~trackcli.dynamics.mixed_dynamics.MixedDynamics`, 001 §8)
     every sample also carries a motion label; the prediction draws it from the transition
     matrix and moves the sample with that label's model
-    (:class:`~trackcli.dynamics.mixed.MixedPrediction`), and each frame
+    (:class:`~trackcli.dynamics.mixed_dynamics.MixedPrediction`), and each frame
     reports the posterior of every label in ``extra`` (``p_<label>``).
 
     ``hist_range`` is the range of horizontal translation ``tx`` covered by the histogram

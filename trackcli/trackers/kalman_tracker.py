@@ -1,10 +1,10 @@
 """The Kalman contour tracker (AC ch. 10): predict, measure along the normals, assimilate.
 
-Each frame: the AR(2) prediction (AC Fig 10.3, :func:`trackcli.trackers.kalman.predict`),
+Each frame: the AR(2) prediction (AC Fig 10.3, :func:`trackcli.dynamics.kalman.predict`),
 validation gates from the predicted uncertainty along each normal, the nearest feature in
 each gate aggregated into ``Z, S``
 (:func:`trackcli.observe.measure.nearest_feature_information`), and the assimilation
-(:func:`trackcli.trackers.kalman.assimilate`).
+(:func:`trackcli.dynamics.kalman.assimilate`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from trackcli.observe.observation import Observation
 from trackcli.settings import KalmanSettings, MeasurementSettings, ObservationSettings, Settings
 from trackcli.shapes.outline import contour_summary, measurement_sampler
 from trackcli.shapes.shape_space import ShapeSpace
-from trackcli.trackers import kalman
+from trackcli.dynamics import kalman
 from trackcli.trackers.base import FrameData, FrameResult, Tracker, run_tracker
 
 

@@ -13,7 +13,7 @@ modes (a piecewise-Gaussian density); each frame (the steps are :mod:`trackcli.t
    normal, :func:`trackcli.observe.measure.kalman_features`, summed into ``Z, S`` by
    :func:`trackcli.observe.measure.aggregate`) made at the seed's current curve with the
    gates of its mode's prediction, then
-   assimilated against the seed's prior mode (:func:`trackcli.trackers.kalman.assimilate`);
+   assimilated against the seed's prior mode (:func:`trackcli.dynamics.kalman.assimilate`);
 4. each refined curve is weighted by its prior mode's weight and by the edge likelihood of
    the observation model (``observation.likelihood``: the discriminant by default; the
    likelihood itself, neither tempered nor with CONDENSATION's still-scene term);
@@ -45,7 +45,8 @@ from trackcli.observe.observation import Observation
 from trackcli.settings import Settings
 from trackcli.shapes.outline import contour_summary, measurement_sampler
 from trackcli.shapes.shape_space import ShapeSpace
-from trackcli.trackers import kalman, modes
+from trackcli.dynamics import kalman
+from trackcli.trackers import modes
 from trackcli.trackers.base import FrameData, FrameResult, Tracker
 from trackcli.trackers.condensation_tracker import translation_jumps
 from trackcli.trackers.kalman_tracker import kalman_sigma
