@@ -254,12 +254,13 @@ class OutlineSettings:
 class OutputSettings:
     rrd: bool = _f(True, "bool", "write a Rerun recording (.rrd)")
     jpeg_quality: int = _f(80, "int", "JPEG quality of frames encoded for recordings (frames kept as their source's JPEG are not encoded again)", lo=10, hi=100)
-    frames: str = _f("auto", "str", "how recordings store frames: jpeg (every frame encoded as JPEG at jpeg_quality, shown by every Rerun viewer), "
-                     "asset (the MP4 clip embedded as a video; the native viewer needs FFmpeg for H.264/H.265 "
-                     "and cannot play VP9), auto (asset only for AV1 clips, which the native viewer decodes by itself; "
-                     "frames that are JPEG at the source, a folder of .jpg images or an MJPG video, kept as they are; else jpeg); "
-                     "a frame selection (--start/--end/--step) is always stored as JPEG",
-                     choices=("auto", "jpeg", "asset"))
+    frames: str = _f("auto", "str", "how recordings store frames: auto (an AV1 MP4 recorded whole embedded as it is; otherwise "
+                     "the frames encoded as AV1 video, which the native Rerun viewer decodes by itself, about 7.5 KB a frame "
+                     "at 854x480; JPEG when PyAV's AV1 encoder is missing or the frames are under 64x64, the source's own "
+                     "JPEGs kept as they are), av1 (always encode AV1), jpeg (every frame encoded as JPEG at jpeg_quality, "
+                     "shown by every Rerun viewer), asset (the MP4 clip embedded as a video; the native viewer needs FFmpeg "
+                     "for H.264/H.265 and cannot play VP9); a frame selection (--start/--end/--step) is never an asset",
+                     choices=("auto", "av1", "jpeg", "asset"))
     outline_points: int = _f(64, "int", "points of the estimated outline written to each row of the track CSV "
                              "(outline_x0, outline_y0, ...); 0 = none, otherwise at least 2", lo=0, hi=1000)
     box: str = _f("drawn", "str", "the box columns of the track CSV (bbox_x, ...): drawn (when the tracker starts at a template "

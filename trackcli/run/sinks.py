@@ -224,9 +224,11 @@ class RecordingSink(Sink):
             storage, why = frame_storage(frames_mode, codec=getattr(video, "codec", ""),
                                          embeddable=getattr(video, "is_rerun_video_asset", lambda: False)(),
                                          whole_clip=getattr(video, "whole_clip", False))
-            log.info("recording frames as %s: %s", storage.upper() if storage == "jpeg" else "a video asset", why)
+            log.info("recording frames as %s: %s", {"jpeg": "JPEG", "av1": "AV1 video"}.get(storage, "a video asset"),
+                     why)
             log_frame = rec.frame_logger(getattr(video, "path", None) if storage == "asset" else None,
-                                         quality=jpeg_quality, keep_jpeg=keep_jpeg)
+                                         quality=jpeg_quality, keep_jpeg=keep_jpeg, av1=storage == "av1",
+                                         fps=getattr(video, "fps", 25.0))
             self.recorder = BackgroundRecorder(rec, log_frame, _record_frame)
         except BaseException as exc:
             self._ctx.__exit__(type(exc), exc, exc.__traceback__)
