@@ -15,6 +15,8 @@ makes the result meaningless raises :class:`~trackcli.errors.DataError` instead.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from trackcli.errors import DataError
@@ -102,4 +104,18 @@ def sample_collapse(ess: np.ndarray, particles: int, *, name: str = "the run") -
             "(a config with wider measurements or softer weights, or more particles)")
 
 
-__all__ = ["COLLAPSE_FRACTION", "COLLAPSE_FRAMES", "check_sizes", "check_track_on_clip", "sample_collapse"]
+def track_warnings(csv: str | os.PathLike[str], particles: int, *, name: str) -> list[str]:
+    """The warnings about a finished run that its track CSV shows: a collapsed sample set."""
+    from trackcli.errors import TrackcliError
+    from trackcli.io.tracks import read_columns
+
+    try:
+        ess = read_columns(csv, ["ess"])["ess"]
+    except TrackcliError:  # a track without an ESS column
+        return []
+    note = sample_collapse(ess, particles, name=name)
+    return [note] if note else []
+
+
+__all__ = ["COLLAPSE_FRACTION", "COLLAPSE_FRAMES", "check_sizes", "check_track_on_clip", "sample_collapse",
+           "track_warnings"]
