@@ -15,8 +15,6 @@ COMMAND_LINES = 300
 MODULE_LINES = 700
 #: modules over MODULE_LINES being split now; each leaves the list when it is split
 TOO_LONG_FOR_NOW = {
-    "io/recording.py",
-    "run/batch.py",
     "shapes/draw.py",
 }
 

@@ -33,8 +33,12 @@ if TYPE_CHECKING:  # the batch machinery (numpy, OpenCV) loads when a batch runs
 @click.option("--force", is_flag=True, help="Run clips again even when their outputs are complete and current.")
 @json_option("JSON lines on stdout: one object per clip (kind: clip), then one summary (kind: summary).")
 @quiet_option("No progress lines on stderr (failed clips are still reported).")
+@click.option("--masks", is_flag=True, help="Also write every clip's outlines as mask PNGs, OUTDIR/NAME/masks/ "
+              "(as the manifest's masks: true does for one clip).")
+@click.option("--palette", is_flag=True, help="With --masks: 8-bit palette PNGs, the object at index 1.")
+@click.option("--vot", is_flag=True, help="Also write every clip's VOT region lines, OUTDIR/NAME/NAME.TRACKER.vot.txt.")
 @click.pass_context
-def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet):
+def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet, masks, palette, vot):
     """Track (and score) every clip listed in MANIFEST, a YAML file.
 
     \b
@@ -49,9 +53,12 @@ def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet):
     Per clip, in OUTDIR/NAME/: the track CSV, recording and effective configuration as
     `trackcli track` writes them, score.json (with a truth) and result.json, written
     last.  A clip whose result.json is present and current is skipped (--force runs
-    it again).  A clip that fails is reported and the others go on.
+    it again).  A clip that fails is reported and the others go on; so does a clip whose
+    entry names a file that does not exist: every other clip runs, and the missing ones
+    are listed at the end.
 
-    Exit status: 0 if every clip succeeded, 1 if any failed, 3 or 4 for a bad manifest.
+    Exit status: 0 if every clip succeeded, 1 if any failed or was missing an input, 3 or 4
+    for a bad manifest.
 
     \b
     Example:
@@ -59,6 +66,8 @@ def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet):
     """
     if scheduler and workers:
         raise click.UsageError("give --jobs (local processes) or --scheduler (Dask), not both")
+    if palette and not masks:
+        raise click.UsageError("--palette goes with --masks")
     quiet = quiet or is_quiet(ctx)
     if quiet:
         logging.getLogger("trackcli").setLevel(logging.ERROR)
@@ -66,7 +75,8 @@ def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet):
 
     if scheduler:
         batch.require_dask()
-    m = batch.load_manifest(manifest)
+    m = batch.with_exports(batch.load_manifest(manifest), masks=("palette" if palette else "grey") if masks else None,
+                           vot=vot)
     total = len(m.jobs)
     done = 0
 
@@ -74,9 +84,12 @@ def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet):
         nonlocal done
         done += 1
         if r.status == "failed":
-            click.echo(f"[{done}/{total}] {r.name}: FAILED: {r.error}", err=True)
+            click.echo(f"[{done}/{total}] {r.name}: {'MISSING INPUT' if r.missing else 'FAILED'}: {r.error}", err=True)
         elif not quiet:
             click.echo(f"[{done}/{total}] {r.name}: {_progress_text(r)}", err=True)
+        if not quiet:
+            for w in r.warnings:
+                click.echo(f"Warning: {w}", err=True)
 
     from trackcli.io.outputs import output_dir
 
@@ -89,6 +102,10 @@ def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet):
         click.echo(json.dumps({"kind": "summary", "manifest": str(m.path), **result.summary()}, allow_nan=False))
     else:
         click.echo(format_table(result))
+    missing = [r for r in result.results if r.missing]
+    if missing:
+        click.echo(f"Error: {len(missing)} of {total} clips did not run, an input is missing: "
+                   + "; ".join(r.error for r in missing), err=True)
     ctx.exit(0 if result.succeeded else 1)
 
 

@@ -9,7 +9,7 @@ from trackcli.cli.options import json_option, object_option
 
 
 @click.command("eval")
-@click.argument("tracks", nargs=-1, required=True, type=click.Path(dir_okay=False), metavar="PRED...")
+@click.argument("tracks", nargs=-1, required=True, type=click.Path(), metavar="PRED...")
 @click.argument("truth", type=click.Path())
 @click.option("--threshold", type=click.FloatRange(min=0, min_open=True), default=20.0, show_default=True,
               help="Centre-error threshold (px) for precision.")
@@ -17,8 +17,9 @@ from trackcli.cli.options import json_option, object_option
               help="Also count a frame lost when its centre error exceeds this (px).")
 @object_option("Object id in a trackcli truth CSV with several objects.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
-              help="Write the precision plot (0-50 px) and the success plot (IoU 0-1) of all PRED to this PNG.")
-@json_option("Print the scores as one JSON object per PRED.")
+              help="Write the precision plot (0-50 px) and the success plot (IoU 0-1) of all PRED to this PNG "
+                   "(against true masks: J and F per frame).")
+@json_option("Print the scores as one JSON object per PRED (against true masks, with J and F per frame).")
 @click.pass_context
 def eval_cmd(ctx, tracks, truth, threshold, lost_threshold, object_id, plot_path, as_json):
     """Score estimates PRED (one or more track CSVs) against ground truth TRUTH.
@@ -28,6 +29,11 @@ def eval_cmd(ctx, tracks, truth, threshold, lost_threshold, object_id, plot_path
     scored by the rectangle around them), or a folder holding
     groundtruth_rect.txt / groundtruth.txt.  Frames are matched by index; when a track and
     the truth cover different frames, a warning says which frames were scored.
+
+    TRUTH may also be a folder of true masks (DAVIS: SEQ/masks/00000.png, ...); each PRED is
+    then a folder of masks (track --masks) or a track CSV, and the scores are DAVIS-2016's:
+    J (mask IoU) and F (boundary F-measure), their mean, recall and decay over the frames,
+    the first and the last left out, and J&F.
 
     \b
     Metrics: centre error (mean, median, max, px), precision at --threshold, success AUC,
@@ -43,7 +49,19 @@ def eval_cmd(ctx, tracks, truth, threshold, lost_threshold, object_id, plot_path
     Examples:
       trackcli eval out/test.condensation.csv sample_data/test.truth.csv
       trackcli eval out/test.condensation.csv out/test.kalman.csv sample_data/test.truth.csv --plot pr.png
+      trackcli eval out/boat-masks davis/boat/masks --plot jf.png
     """
+    from pathlib import Path
+
+    from trackcli.run.mask_eval import is_mask_folder
+
+    if is_mask_folder(truth):
+        _eval_masks(ctx, tracks, truth, plot_path, as_json)
+        return
+    folders = [t for t in tracks if Path(t).is_dir()]
+    if folders:
+        raise click.UsageError(f"{folders[0]} is a folder: a folder of masks is scored against a folder of true "
+                               "masks (TRUTH, e.g. SEQ/masks)")
     from trackcli.run.evaluate import format_table
     from trackcli.run.scoring import score_tracks, write_score_plots
 
@@ -62,5 +80,27 @@ def eval_cmd(ctx, tracks, truth, threshold, lost_threshold, object_id, plot_path
         click.echo(format_table(s.result))
     if plot_path:
         out = write_score_plots(plot_path, scored, threshold)
+        if not as_json:
+            click.echo(f"wrote {out}")
+
+
+def _eval_masks(ctx, preds, truth, plot_path, as_json) -> None:
+    """``eval`` against a folder of true masks: DAVIS J and F (:mod:`trackcli.run.mask_eval`)."""
+    from trackcli.run.mask_eval import format_mask_table, score_predictions, write_mask_plot
+
+    quiet = is_quiet(ctx)
+    scored = []
+    for k, (label, result) in enumerate(score_predictions(list(preds), truth, plot=plot_path)):
+        scored.append((label, result))
+        if result.notes and not quiet:
+            click.echo(f"Warning: {'; '.join(result.notes)}", err=True)
+        if as_json:
+            echo_json(result.to_dict(), digits=6)
+            continue
+        if len(preds) > 1:
+            click.echo(("\n" if k else "") + f"== {label} ({result.pred})")
+        click.echo(format_mask_table(result))
+    if plot_path:
+        out = write_mask_plot(plot_path, scored)
         if not as_json:
             click.echo(f"wrote {out}")

@@ -84,6 +84,23 @@ def quiet_option(help: str) -> Decorator:
     return click.option("-q", "--quiet", is_flag=True, help=help)
 
 
+def export_options(f: Callable[..., Any]) -> Callable[..., Any]:
+    """``--masks DIR``, ``--palette``, ``--vot FILE``: each frame's outline as a mask PNG, and as a
+    VOT region line (``masks``, ``palette``, ``vot``)."""
+    for opt in reversed([
+        click.option("--masks", type=click.Path(file_okay=False),
+                     help="Write the filled outline of every frame as a mask PNG into this folder, named as the "
+                          "frames (DAVIS style: 0 background, 255 object)."),
+        click.option("--palette", is_flag=True,
+                     help="With --masks: 8-bit palette PNGs, the object at index 1 (DAVIS-2017 style)."),
+        click.option("--vot", type=click.Path(dir_okay=False),
+                     help="Write VOT region lines to this file: one polygon 'x1,y1,x2,y2,...' per frame "
+                          "('0' where there is no outline)."),
+    ]):
+        f = opt(f)
+    return f
+
+
 def video_options(f: Callable[..., Any]) -> Callable[..., Any]:
     """``--fps``, ``--start``, ``--end``, ``--step``: which frames of a clip are read."""
     for opt in reversed([

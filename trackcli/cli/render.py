@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from trackcli.cli.common import bars
-from trackcli.cli.options import object_option, output_option, video_options
+from trackcli.cli.options import export_options, object_option, output_option, video_options
 
 
 @click.command("render")
@@ -21,22 +21,40 @@ from trackcli.cli.options import object_option, output_option, video_options
 @click.option("--truth", type=click.Path(), help="Ground truth (as for eval) whose box is drawn in green.")
 @object_option("Object id in a truth CSV with several objects.")
 @click.option("--no-label", is_flag=True, help="No frame number, LOST or confidence text on the frames.")
+@export_options
 @video_options
 @click.pass_context
-def render_cmd(ctx, track, clip, output, sheet, png, tile_width, truth, object_id, no_label, fps, start, end, step):
+def render_cmd(ctx, track, clip, output, sheet, png, tile_width, truth, object_id, no_label, masks, palette, vot, fps,
+               start, end, step):
     """Draw the estimated outline of TRACK (a track CSV) on the frames of CLIP.
 
     CLIP is the video file or image folder that was tracked.  The outline comes from the
     CSV's outline columns, so no model or template is needed.  By default the frames of the
-    track are drawn (--start/--end/--step select others) into an MP4 beside TRACK.  Lost
-    frames show the outline dashed in grey; with --truth the true box is drawn in green.
+    track are drawn (--start/--end/--step select others) into an MP4 beside TRACK (H.264;
+    .avi: Motion JPEG).  Lost frames show the outline dashed in grey; with --truth the true
+    box is drawn in green.  --masks DIR and --vot FILE write every frame of the track as
+    mask PNGs named as the frames, and as VOT region lines, instead of pictures.
 
     \b
     Examples:
       trackcli render out/test.condensation.csv sample_data/test.mp4
       trackcli render out/test.condensation.csv sample_data/test.mp4 --sheet 12 -o sheet.png
       trackcli render out/crossing.kalman.csv ../footage/crossing --png --truth ../footage/crossing
+      trackcli render out/boat.condensation.csv davis/boat/img --masks out/boat-masks
     """
+    if masks or vot:
+        from trackcli.run.export import check_export_outputs, export_track
+
+        if sheet or png or output:
+            raise click.UsageError("--masks/--vot write masks and region lines; give them without --sheet, --png or -o")
+        if palette and not masks:
+            raise click.UsageError("--palette goes with --masks")
+        check_export_outputs(masks, vot, inputs={"TRACK": track, "CLIP": clip})
+        exported = export_track(track, clip, masks=masks, vot=vot, palette=palette, fps=fps)
+        click.echo(f"wrote {exported.line()}")
+        return
+    if palette:
+        raise click.UsageError("--palette goes with --masks")
     from trackcli.run.rendering import render_track
 
     if sheet and png:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import click
 
 from trackcli.cli.common import bars, echo_json
-from trackcli.cli.options import (config_option, json_option, no_rrd_option, outdir_option, seed_option,
-                                  template_option, video_options, video_overrides)
+from trackcli.cli.options import (config_option, export_options, json_option, no_rrd_option, outdir_option,
+                                  seed_option, template_option, video_options, video_overrides)
 from trackcli.trackers import TRACKERS
 
 
@@ -39,10 +39,11 @@ from trackcli.trackers import TRACKERS
                    "sample weights; both over the whole clip, after tracking it.")
 @no_rrd_option("Do not write Rerun recordings.")
 @json_option("Print one JSON summary line per clip on stdout.")
+@export_options
 @video_options
 @click.pass_context
 def track_cmd(ctx, clips, config, model, template, tracker, particles, threads, seed, outdir, smooth, no_rrd, as_json,
-              fps, start, end, step):
+              masks, palette, vot, fps, start, end, step):
     """Follow the object through each CLIP (video file or image folder).
 
     \b
@@ -62,7 +63,8 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, threads, 
       CLIP.TRACKER.rrd         Rerun recording: frames, contour, particles or gates, series
       CLIP.TRACKER.config.yaml the effective configuration
       CLIP.TRACKER.smoothed.csv with --smooth: smoothed estimates (same columns)
-    and one summary line on stdout.  With several CLIPS, a clip that fails is reported
+    and one summary line on stdout.  --masks DIR writes each frame's outline filled as
+    DIR/FRAME.png (with several clips, DIR/CLIP/FRAME.png), --vot FILE VOT region lines.  With several CLIPS, a clip that fails is reported
     on stderr and the others still run; the exit code is then 1.
 
     Every frame gets a confidence (0-1) that the estimate is on the object, from the
@@ -81,7 +83,7 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, threads, 
     failures = 0
     for outcome in track_clips(clips, config=config, overrides=overrides, outdir=outdir, model=model,
                                template=template, tracker=tracker, rrd=not no_rrd, smooth=smooth,
-                               progress=bars(ctx),
+                               progress=bars(ctx), masks=masks, palette=palette, vot=vot,
                                options={o: k for o, k, v in (("--particles", "condensation.particles", particles),
                                                              ("--threads", "condensation.threads", threads))
                                         if v is not None}):
@@ -92,6 +94,8 @@ def track_cmd(ctx, clips, config, model, template, tracker, particles, threads, 
             echo_json(outcome.json(tracker), digits=6)
         elif outcome.error is None:
             click.echo(outcome.summary.line())
+            if outcome.exported is not None:
+                click.echo(outcome.exported.line())
     if failures:
         click.echo(f"{failures} of {len(clips)} clips failed", err=True)
     ctx.exit(1 if failures else 0)

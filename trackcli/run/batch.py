@@ -421,6 +421,17 @@ def _failed(job: Job, folder: Path, message: str, t0: float | None = None, *, mi
 # The batch
 
 
+def with_exports(manifest: Manifest, *, masks: str | None = None, vot: bool = False) -> Manifest:
+    """``manifest`` with masks (``"grey"`` or ``"palette"``) and VOT region lines asked of every
+    job that does not ask for them itself (``batch --masks``, ``--vot``)."""
+    import dataclasses
+
+    if not masks and not vot:
+        return manifest
+    jobs = tuple(dataclasses.replace(j, masks=j.masks or masks, vot=j.vot or vot) for j in manifest.jobs)
+    return dataclasses.replace(manifest, jobs=jobs)
+
+
 def run_batch(
     jobs: Manifest | Iterable[Job],
     outdir: str | os.PathLike[str],
@@ -506,5 +517,5 @@ def run_batch(
 __all__ = [
     "CLIP_KEYS", "DEFAULT_KEYS", "FORMAT", "MASKS_FOLDER", "RESULT_FILE", "SCORE_FILE", "STATUSES", "SUMMARY_FILE",
     "THREAD_ENV", "VOT_SUFFIX", "BatchResult", "Job", "JobResult", "Manifest", "completed_result", "job_fingerprint",
-    "job_folder", "load_manifest", "require_dask", "run_batch", "run_job", "threads_per_worker",
+    "job_folder", "load_manifest", "require_dask", "run_batch", "run_job", "threads_per_worker", "with_exports",
 ]

@@ -248,8 +248,11 @@ class TrackingSetup:
 
 
 def clip_name(clip: str | os.PathLike[str]) -> str:
-    """Default name of a clip's outputs: a file's stem, or a folder's name."""
+    """Default name of a clip's outputs: a file's stem, or a folder's name; for the frames folder
+    of a benchmark sequence, ``NAME/img``, the sequence's name ``NAME``."""
     p = Path(clip)
+    if p.name.lower() == "img" and not p.suffix:
+        return p.absolute().parent.name or p.name
     return p.stem if p.suffix else p.name
 
 

@@ -113,6 +113,21 @@ def _check_mask_folder(folder: Path) -> None:
                      "frames?); choose another folder for the masks")
 
 
+def check_export_outputs(masks: str | os.PathLike[str] | None, vot: str | os.PathLike[str] | None, *,
+                         inputs: dict[str, Any] | None = None) -> None:
+    """Refuse, before any work, a mask folder trackcli would not replace and a region file that
+    names an input or a folder (one-line errors)."""
+    from trackcli.io.outputs import check_output_folders, refuse_overwriting_inputs
+
+    if masks is not None:
+        _check_mask_folder(Path(masks))
+    if vot is not None:
+        if Path(vot).is_dir():
+            raise InputError(f"{vot}: is a folder; give the region file's name")
+        refuse_overwriting_inputs({"--vot": vot}, dict(inputs or {}))
+        check_output_folders(vot)
+
+
 class VotSink:
     """VOT region lines, one per frame pushed, written atomically (see the module docstring)."""
 
@@ -145,6 +160,11 @@ class ExportResult:
     masks: Path | None
     vot: Path | None
     frames: int
+
+    def line(self) -> str:
+        """``masks -> DIR, VOT regions -> FILE (N frames)``: what a command prints."""
+        parts = ([f"masks -> {self.masks}"] if self.masks else []) + ([f"VOT regions -> {self.vot}"] if self.vot else [])
+        return f"{', '.join(parts)} ({self.frames} frames)"
 
 
 def export_track(track_csv: str | os.PathLike[str], clip: str | os.PathLike[str], *,
@@ -196,4 +216,4 @@ def export_track(track_csv: str | os.PathLike[str], clip: str | os.PathLike[str]
                         len(frames))
 
 
-__all__ = ["ExportResult", "MASK_FOLDER_MARK", "MaskSink", "VotSink", "export_track"]
+__all__ = ["ExportResult", "MASK_FOLDER_MARK", "MaskSink", "VotSink", "check_export_outputs", "export_track"]

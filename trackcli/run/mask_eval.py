@@ -31,7 +31,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 
@@ -45,11 +45,18 @@ RECALL_THRESHOLD = 0.5
 
 
 def is_mask_folder(path: str | os.PathLike[str]) -> bool:
-    """Whether ``path`` is a folder holding mask images itself (not a benchmark folder with a box file)."""
+    """Whether ``path`` is a folder of mask PNGs: not a benchmark folder with a box file, and its
+    first PNG has a few values (0 and 255, or a palette's indices), not a frame's hundreds."""
     p = Path(path)
     if not p.is_dir() or (p / "groundtruth_rect.txt").is_file() or (p / "groundtruth.txt").is_file():
         return False
-    return any(f.suffix.lower() == ".png" for f in p.iterdir())
+    first = next((f for f in sorted(p.iterdir()) if f.suffix.lower() == ".png" and not f.name.startswith(".")), None)
+    if first is None:
+        return False
+    import cv2
+
+    img = cv2.imread(str(first), cv2.IMREAD_UNCHANGED)  # masks have a few values, frames hundreds
+    return img is not None and len(np.unique(img.reshape(-1, img.shape[2] if img.ndim == 3 else 1), axis=0)) <= 16
 
 
 def statistics(values: np.ndarray) -> tuple[float, float, float]:
@@ -181,6 +188,24 @@ def evaluate_masks(pred: str | os.PathLike[str], truth: str | os.PathLike[str], 
     return MaskScores(str(pred), str(truth), scores, len(truth_files), n_pred, tuple(notes))
 
 
+def score_predictions(preds: list[str], truth: str, *, plot: str | None = None
+                      ) -> Iterator[tuple[str | None, MaskScores]]:
+    """``eval`` against a folder of true masks: each of ``preds`` (mask folders or track CSVs)
+    scored in turn, with its label for tables and the plot (when there are several or a
+    ``plot``, which must not replace an input)."""
+    labels: list[str | None] = [None] * len(preds)
+    if plot:
+        from trackcli.io.outputs import refuse_overwriting_inputs
+
+        refuse_overwriting_inputs({"--plot": plot}, {"TRUTH": truth, **{f"PRED {k + 1}": t for k, t in enumerate(preds)}})
+    if plot or len(preds) > 1:
+        from trackcli.run.plots import track_labels
+
+        labels = list(track_labels(preds))
+    for label, pred in zip(labels, preds):
+        yield label, evaluate_masks(pred, truth)
+
+
 def format_mask_table(result: MaskScores) -> str:
     """A human-readable table of :class:`MaskScores` (one measure per line)."""
     s = result.summary()
@@ -268,5 +293,5 @@ def write_mask_plot(path: str | os.PathLike[str], items: list[tuple[str, MaskSco
     return path
 
 
-__all__ = ["MaskScores", "draw_mask_plot", "evaluate_masks", "format_mask_table", "is_mask_folder", "statistics",
-           "write_mask_plot"]
+__all__ = ["MaskScores", "draw_mask_plot", "evaluate_masks", "format_mask_table", "is_mask_folder", "score_predictions",
+           "statistics", "write_mask_plot"]

@@ -40,7 +40,7 @@ def score_tracks(tracks: Sequence[str], truth: str, *, threshold: float = 20.0, 
     its curves too.  ``threshold`` (px) is the precision's; ``lost_threshold`` (px) also
     counts a frame lost when its centre error exceeds it.
     """
-    from trackcli.run.evaluate import coverage_notes, load_track, load_truth, score_frames, summarise
+    from trackcli.run.evaluate import coverage_notes, load_track, load_truth, mismatch_notes, score_frames, summarise
 
     if plot:
         from trackcli.io.outputs import refuse_overwriting_inputs
@@ -56,7 +56,7 @@ def score_tracks(tracks: Sequence[str], truth: str, *, threshold: float = 20.0, 
         pred = load_track(path)
         scores = score_frames(pred, gt, lost_threshold=lost_threshold)
         result = summarise(scores, threshold=threshold)
-        notes = coverage_notes(pred, gt, scores)
+        notes = coverage_notes(pred, gt, scores) + mismatch_notes(pred, gt, scores, truth)
         curves = None
         if plot:
             from trackcli.run.plots import curves as make_curves
