@@ -601,11 +601,11 @@ def test_an_interrupted_job_stops_at_a_frame_and_leaves_nothing(tmp_path, drawn)
 
 
 def test_a_worker_interrupted_before_its_job_refuses_it(monkeypatch):
-    from trackcli.run import batch
+    from trackcli.run import executors
 
-    monkeypatch.setattr(batch, "_interrupted", True)
+    monkeypatch.setattr(executors, "_interrupted", True)
     with pytest.raises(KeyboardInterrupt):
-        batch._worker_job(None, "unused")
+        executors._worker_job(None, "unused")
 
 
 def test_the_parent_removes_what_unfinished_jobs_left(tmp_path):

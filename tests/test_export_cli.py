@@ -88,7 +88,7 @@ def test_eval_of_the_masks_prints_j_and_f_and_agrees_with_the_csv(tracked, tmp_p
     assert mask_score["counted"] == [False] + [True] * (N - 2) + [False]
     assert cv2.imread(str(tmp_path / "jf.png")).shape == (440, 1000, 3)
     # a folder of masks against a box truth is a usage error
-    res = run(["eval", root / "masks", seq], 2)
+    res = run(["eval", root / "masks", seq], 3)
     assert "folder of true masks" in res.stderr
 
 
@@ -137,7 +137,7 @@ def test_inputs_that_do_not_belong_together(tracked, tmp_path, caplog):
     large.mkdir()
     for i in range(N):
         cv2.imwrite(str(large / f"{i:05d}.png"), np.zeros((4 * H, 4 * W, 3), np.uint8))
-    with caplog.at_level(logging.WARNING):
+    with caplog.at_level(logging.WARNING, logger="trackcli"):
         run(["render", csv, large, "--fps", "25", "-o", tmp_path / "large.mp4"], 0)
     assert "made on a smaller clip" in caplog.text
 
@@ -157,13 +157,13 @@ def test_several_clips_take_masks_per_clip_and_refuse_one_vot_file(tracked, tmp_
 def test_a_collapsed_sample_set_is_warned_about(tmp_path, caplog):
     clip = sample_clip("test")
     run(["draw", clip, "--box", "166,104,132,153", "-o", tmp_path / "t.yaml"], 0)
-    with caplog.at_level(logging.WARNING):
+    with caplog.at_level(logging.WARNING, logger="trackcli"):
         run(["track", clip, "--template", tmp_path / "t.yaml", "-c", "tight", "--end", "16", "--no-rrd",
              "-o", tmp_path / "tight"], 0)
     notes = [r.getMessage() for r in caplog.records if "collapsed" in r.getMessage()]
     assert len(notes) == 1 and notes[0].startswith("test: the sample set collapsed") and "\n" not in notes[0]
     caplog.clear()
-    with caplog.at_level(logging.WARNING):
+    with caplog.at_level(logging.WARNING, logger="trackcli"):
         run(["track", clip, "--template", tmp_path / "t.yaml", "--end", "16", "--no-rrd", "-o", tmp_path / "d"], 0)
     assert "collapsed" not in caplog.text
 

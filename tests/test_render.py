@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+
 import cv2
 import numpy as np
 import pytest
@@ -141,7 +143,8 @@ def test_mp4_without_pyav_falls_back_to_opencv(tmp_path, tracked, ellipse_clip, 
     from trackcli.io import encode
 
     monkeypatch.setattr(encode, "encoder_available", lambda name: False)
-    result = run(["render", tracked, ellipse_clip, "--end", "2", "-o", tmp_path / "o.mp4"], 0)
+    with caplog.at_level(logging.WARNING, logger="trackcli"):  # another test's -q may have raised its level
+        result = run(["render", tracked, ellipse_clip, "--end", "2", "-o", tmp_path / "o.mp4"], 0)
     assert "video (vp09)" in result.stdout or "video (mp4v)" in result.stdout
     assert "libx264" in caplog.text and len(clip_frames(tmp_path / "o.mp4")) == 2
 

@@ -55,7 +55,7 @@ def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet, 
     last.  A clip whose result.json is present and current is skipped (--force runs
     it again).  A clip that fails is reported and the others go on; so does a clip whose
     entry names a file that does not exist: every other clip runs, and the missing ones
-    are listed at the end.
+    are listed at the end (when none can run, nothing is written: exit status 4).
 
     Exit status: 0 if every clip succeeded, 1 if any failed or was missing an input, 3 or 4
     for a bad manifest.
@@ -75,7 +75,9 @@ def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet, 
 
     if scheduler:
         batch.require_dask()
-    m = batch.with_exports(batch.load_manifest(manifest), masks=("palette" if palette else "grey") if masks else None,
+    m = batch.load_manifest(manifest)
+    batch.check_runnable(m)
+    m = batch.with_exports(m, masks=("palette" if palette else "grey") if masks else None,
                            vot=vot)
     total = len(m.jobs)
     done = 0

@@ -60,8 +60,8 @@ def eval_cmd(ctx, tracks, truth, threshold, lost_threshold, object_id, plot_path
         return
     folders = [t for t in tracks if Path(t).is_dir()]
     if folders:
-        raise click.UsageError(f"{folders[0]} is a folder: a folder of masks is scored against a folder of true "
-                               "masks (TRUTH, e.g. SEQ/masks)")
+        raise click.BadParameter(f"{folders[0]} is a folder: a folder of masks is scored against a folder of "
+                                 "true masks (TRUTH, e.g. SEQ/masks)", param_hint="PRED")
     from trackcli.run.evaluate import format_table
     from trackcli.run.scoring import score_tracks, write_score_plots
 

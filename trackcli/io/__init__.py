@@ -9,6 +9,7 @@ writer's outline columns (:class:`.tracks.OutlineSource`, computed by
 
 - :mod:`.video` — decoding of video files and image folders.
 - :mod:`.recording` — the Rerun ``.rrd`` recording of a run.
+- :mod:`.encode` — H.264 video files and AV1 frames for recordings, through PyAV.
 - :mod:`.tracks` — the track CSV: writing rows, reading tracks, outlines and uncertainty.
 - :mod:`.truth` — what ``eval`` compares: a track's boxes and centres, and ground truth
   (truth CSVs, benchmark box files, folders).

@@ -2,11 +2,15 @@
 
 - :mod:`.clips` — set-up of a tracking run and the run over one clip (CSV, recording, summary).
 - :mod:`.background` — decoding ahead and writing the recording in background threads.
-- :mod:`.batch` — manifests of clips run in worker processes or on a Dask cluster.
+- :mod:`.batch` — a batch's jobs and results; :mod:`.manifest` its manifest, :mod:`.executors`
+  the worker processes and the Dask cluster it runs on.
 - :mod:`.train` — the track → learn cycle on training clips.
 - :mod:`.evaluate` — scores against ground truth (centre error, IoU, precision, success).
 - :mod:`.truth` — ground truth as ``eval`` reads it, with the true outlines of sample clips.
 - :mod:`.outline_columns` — the outline points of each row of a track CSV.
+- :mod:`.masks` — masks and the DAVIS scores J and F; :mod:`.mask_eval` — J and F of a mask
+  folder or a track against true masks; :mod:`.export` — mask PNGs and VOT region lines.
+- :mod:`.checks` — inputs that do not belong together, and collapsed sample sets.
 - :mod:`.render` — overlays drawn on frames, videos and contact sheets.
 - :mod:`.plots` — plots of scores.
 

@@ -421,6 +421,16 @@ def _failed(job: Job, folder: Path, message: str, t0: float | None = None, *, mi
 # The batch
 
 
+def check_runnable(manifest: Manifest) -> None:
+    """Raise InputError (naming the first missing file) when no job of ``manifest`` can run:
+    every clip misses an input, so there is nothing to run and nothing is written."""
+    from trackcli.errors import InputError
+
+    if manifest.jobs and all(j.missing for j in manifest.jobs):
+        more = f" (and {len(manifest.jobs) - 1} more clips miss an input)" if len(manifest.jobs) > 1 else ""
+        raise InputError(f"{manifest.path}: {manifest.jobs[0].missing}{more}")
+
+
 def with_exports(manifest: Manifest, *, masks: str | None = None, vot: bool = False) -> Manifest:
     """``manifest`` with masks (``"grey"`` or ``"palette"``) and VOT region lines asked of every
     job that does not ask for them itself (``batch --masks``, ``--vot``)."""
@@ -516,6 +526,6 @@ def run_batch(
 
 __all__ = [
     "CLIP_KEYS", "DEFAULT_KEYS", "FORMAT", "MASKS_FOLDER", "RESULT_FILE", "SCORE_FILE", "STATUSES", "SUMMARY_FILE",
-    "THREAD_ENV", "VOT_SUFFIX", "BatchResult", "Job", "JobResult", "Manifest", "completed_result", "job_fingerprint",
-    "job_folder", "load_manifest", "require_dask", "run_batch", "run_job", "threads_per_worker", "with_exports",
+    "THREAD_ENV", "VOT_SUFFIX", "BatchResult", "Job", "JobResult", "Manifest", "check_runnable", "completed_result",
+    "job_fingerprint", "job_folder", "load_manifest", "require_dask", "run_batch", "run_job", "threads_per_worker", "with_exports",
 ]

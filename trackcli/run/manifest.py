@@ -49,7 +49,8 @@ key, e.g. ``batch.yaml: clips[2].tracker: expected one of ...``.  A file named b
 entry that does not exist (its clip, template, model, truth or config) does not stop the
 batch: that job is marked :attr:`Job.missing`, the batch runs every other clip, and reports
 the missing ones at the end (``trackcli batch`` then exits with 1).  A missing file named in
-``defaults``, which every clip would lack, is an error of the manifest.
+``defaults``, which every clip would lack, is an error of the manifest, and so is a manifest
+none of whose clips can run (:func:`trackcli.run.batch.check_runnable`).
 """
 
 from __future__ import annotations

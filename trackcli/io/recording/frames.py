@@ -135,12 +135,16 @@ class VideoStreamLogger:
         self._recording.stream.log(self._entity, rr.VideoStream(codec=rr.VideoCodec.AV1), static=True)
         return True
 
-    def finish(self) -> None:
-        """Send the samples still held, with those inside the encoder (called when the recording closes)."""
+    def finish(self, *, send: bool = True) -> None:
+        """Send the samples still held, with those inside the encoder (called when the recording
+        closes); ``send=False`` (a recording that failed) only stops the encoder."""
         if self._encoder is not None:
-            self._held += self._encoder.flush()
-            self._encoder = None
-        self._send()
+            encoder, self._encoder = self._encoder, None
+            self._held += encoder.flush()
+        if send:
+            self._send()
+        else:
+            self._held = []
 
     def _send(self) -> None:
         if not self._held:

@@ -138,9 +138,13 @@ class Recording(Overlays):
             return
         try:
             try:
+                if exc_type is not None:
+                    for logger in self._finishers:  # stop a video encoder (it complains when dropped running)
+                        with contextlib.suppress(Exception):
+                            logger.finish(send=False)
                 if exc_type is None:
-                    for finish in self._finishers:  # e.g. the samples still inside a video encoder
-                        finish()
+                    for logger in self._finishers:  # e.g. the samples still inside a video encoder
+                        logger.finish()
                     self.flush_overlays(last=True)
                     if self._kind is not None:
                         stream.send_blueprint(make_blueprint(self._kind, self.content()), make_active=True,
@@ -359,7 +363,7 @@ class Recording(Overlays):
         q = _check_quality(quality)
         if av1:
             logger = VideoStreamLogger(self, entity, q, keep_jpeg=keep_jpeg, fps=fps)
-            self._finishers.append(logger.finish)
+            self._finishers.append(logger)
             return logger
         timestamps = None
         if video_path is not None and Path(video_path).suffix.lower() in VIDEO_ASSET_SUFFIXES:
