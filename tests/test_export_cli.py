@@ -63,6 +63,7 @@ def tracked(tmp_path_factory):
 
 
 def test_track_masks_are_named_as_the_frames_and_outputs_after_the_sequence(tracked):
+    """The masks are written by a sink of the frame loop, from each frame's outline as tracked."""
     root, seq, res = tracked
     # NAME/img is named NAME, not img
     assert (root / "out" / "seq.condensation.csv").is_file() and not list((root / "out").glob("img.*"))
@@ -98,8 +99,9 @@ def test_render_masks_from_the_csv_and_h264_video(tracked, tmp_path):
     res = run(["render", csv, seq / "img", "--fps", "25", "--masks", tmp_path / "m", "--palette"], 0)
     assert res.stdout.startswith("wrote masks -> ")
     for i in (0, 7):
-        np.testing.assert_array_equal(read_mask(tmp_path / "m" / f"{i:05d}.png"),
-                                      read_mask(root / "masks" / f"{i:05d}.png"))
+        # from the CSV's 64 outline points: the masks track --masks made from each frame's outline, nearly
+        a, b = read_mask(tmp_path / "m" / f"{i:05d}.png"), read_mask(root / "masks" / f"{i:05d}.png")
+        assert np.count_nonzero(a & b) / np.count_nonzero(a | b) > 0.97
     run(["render", csv, seq / "img", "--masks", tmp_path / "m2", "-o", tmp_path / "x.mp4"], 2)
     run(["render", csv, seq / "img", "--palette"], 2)
     res = run(["render", csv, seq / "img", "--fps", "25", "-o", tmp_path / "v.mp4"], 0)

@@ -2,8 +2,8 @@
 
 - :mod:`.clips` — set-up of a tracking run and the run over one clip (CSV, recording, summary).
 - :mod:`.background` — decoding ahead and writing the recording in background threads.
-- :mod:`.batch` — a batch's jobs and results; :mod:`.manifest` its manifest, :mod:`.executors`
-  the worker processes and the Dask cluster it runs on.
+- :mod:`.batch` — a batch of clips and its results; :mod:`.manifest` its manifest, :mod:`.jobs`
+  one job (a clip and its outputs), :mod:`.executors` the worker processes and Dask cluster.
 - :mod:`.train` — the track → learn cycle on training clips.
 - :mod:`.evaluate` — scores against ground truth (centre error, IoU, precision, success).
 - :mod:`.truth` — ground truth as ``eval`` reads it, with the true outlines of sample clips.

@@ -464,6 +464,7 @@ def track_clip(
     smooth: bool = False,
     inputs: dict[str, Any] | None = None,
     options: Mapping[str, str] | None = None,
+    sinks: Callable[[Any], Sequence[Sink]] | None = None,
 ) -> RunSummary:
     """Track one clip and write its outputs: what ``trackcli track`` does per clip.
 
@@ -514,6 +515,9 @@ def track_clip(
         The command-line options the user gave that set a setting, each with the dotted key
         it set (e.g. ``{"--particles": "condensation.particles"}``): one that sets a section the
         tracker does not read (:attr:`~trackcli.trackers.base.Tracker.reads`) is refused.
+    sinks : callable, optional
+        Given the opened clip, more consumers of the results (e.g. the per-frame masks of
+        :class:`trackcli.run.export.MaskSink`), fed and closed with the run's own.
 
     Returns
     -------
@@ -593,7 +597,7 @@ def track_clip(
                                properties=properties, outline_points=settings.output.outline_points,
                                frames_mode=settings.output.frames, smoother=smoother, smooth_csv_path=smooth_path,
                                prepare=the_tracker.prepare if video.width * video.height >= PREPARE_AHEAD_PIXELS
-                               else None)
+                               else None, sinks=sinks(video) if sinks is not None else ())
         # written with the outputs, not before them: a run that fails leaves no configuration
         write_text(config_path, dump_yaml(settings))
         log.info("%s: %d frames decoded in %.2f s, tracked in %.2f s", name, summary.frames, summary.decode_seconds,

@@ -4,7 +4,7 @@
 them to :func:`run_processes` (a pool of local processes,
 :class:`concurrent.futures.ProcessPoolExecutor`, started by a fork server) or :func:`run_dask`
 (a Dask scheduler's workers, which must see the same file paths; ``pip install 'trackcli[dask]'``).
-Both yield each job's :class:`~trackcli.run.batch.JobResult` as it completes, cap every
+Both yield each job's :class:`~trackcli.run.jobs.JobResult` as it completes, cap every
 worker's OpenCV, OpenMP and BLAS threads to its share of the cores, and on Ctrl-C cancel the
 jobs not started, let the running ones stop at their next frame and remove their files.
 """
@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any, Iterable, Iterator
 
 from trackcli.errors import ConfigError, InputError
+from trackcli.run.jobs import RESULT_FILE, _clear_outputs, _failed, _one_line, job_folder, run_job
 from trackcli.run.manifest import Job
 
 log = logging.getLogger(__name__)
@@ -96,8 +97,6 @@ def _worker_interrupted() -> bool:
 
 
 def _worker_job(job: Job, outdir: str) -> Any:
-    from trackcli.run.batch import run_job
-
     if _worker_interrupted():
         raise KeyboardInterrupt
     return run_job(job, outdir, interrupted=_worker_interrupted)
@@ -135,8 +134,6 @@ def _sweep_unfinished(jobs: Iterable[Job], outdir: Path) -> None:
     Called by the parent after every worker has exited, so nothing is being written any
     more: whatever moment a worker was interrupted or killed at, no ``.part`` file stays.
     """
-    from trackcli.run.batch import RESULT_FILE, _clear_outputs, job_folder
-
     for job in jobs:
         folder = job_folder(outdir, job)
         if folder.is_dir() and not (folder / RESULT_FILE).is_file():
@@ -145,12 +142,10 @@ def _sweep_unfinished(jobs: Iterable[Job], outdir: Path) -> None:
 
 
 def run_processes(jobs: list[Job], outdir: Path, workers: int) -> Iterator[Any]:
-    """Run ``jobs`` in ``workers`` local processes; yield each :class:`~trackcli.run.batch.JobResult`."""
+    """Run ``jobs`` in ``workers`` local processes; yield each :class:`~trackcli.run.jobs.JobResult`."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
     from concurrent.futures.process import BrokenProcessPool
-
-    from trackcli.run.batch import _failed, _one_line, job_folder
 
     methods = multiprocessing.get_all_start_methods()
     # forkserver: workers start from a clean process, not a copy of this (possibly threaded) one
@@ -231,8 +226,6 @@ def _restore_malloc() -> bool:
 def _dask_job(job: Job, outdir: str, threads: int) -> Any:
     """One job on a Dask worker, OpenCV capped to the worker's share of the cores, and the
     worker's allocator left fast (:func:`_restore_malloc`)."""
-    from trackcli.run.batch import run_job
-
     _cap_threads(threads)
     _restore_malloc()
     return run_job(job, outdir)
@@ -240,8 +233,6 @@ def _dask_job(job: Job, outdir: str, threads: int) -> Any:
 
 def run_dask(jobs: list[Job], outdir: Path, scheduler: Any) -> Iterator[Any]:
     """Run ``jobs`` on a Dask scheduler (an address or a client); yield each result as it completes."""
-    from trackcli.run.batch import _failed, _one_line, job_folder
-
     require_dask()
     from distributed import Client, as_completed
 

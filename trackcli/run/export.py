@@ -15,10 +15,11 @@ image pixels, ``x`` right, ``y`` down, pixel ``(i, j)`` centred at ``x = j, y = 
   ``x1,y1,x2,y2,...`` (VOT's polygon region, at 0.01 px), or ``0`` for a frame without an
   outline (VOT's code for "no region").
 
-Both are *sinks*: ``push(result)`` takes each frame's result (anything with ``index`` and
-``outline``, else ``contour``) as the frame loop produces it, ``close(ok)`` finishes.
-:func:`export_track` feeds them from the outline columns of a track CSV
-(``trackcli render --masks``, and ``trackcli track --masks`` once the track is written).
+Both are sinks of the frame loop (:class:`trackcli.run.sinks.Sink`): ``trackcli track --masks``
+and ``batch`` give them to the run (:func:`export_sinks`), and they write each frame's outline
+as the tracker makes it (the refined outline, else the estimate's curve); ``close`` commits
+them with the run's other outputs.  :func:`export_track` feeds them from the outline columns
+of a track CSV written earlier (``trackcli render --masks``).
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ import numpy as np
 from trackcli.errors import ConfigError, InputError
 from trackcli.io.outputs import atomic_path, ensure_dir, partial_name
 from trackcli.run.masks import encode_mask_png, outline_mask
+from trackcli.run.sinks import Sink
 
 log = logging.getLogger(__name__)
 
@@ -44,8 +46,8 @@ def _outline_of(result: Any) -> np.ndarray | None:
     return getattr(result, "contour", None) if out is None else out
 
 
-class MaskSink:
-    """Per-frame mask PNGs in a folder (see the module docstring).
+class MaskSink(Sink):
+    """Per-frame mask PNGs in a folder (see the module docstring); a sink of the frame loop.
 
     Parameters
     ----------
@@ -83,12 +85,12 @@ class MaskSink:
             raise InputError(f"{self.folder}: cannot write masks ({exc.strerror or exc})") from None
         self.written += 1
 
-    def push(self, result: Any) -> None:
+    def frame(self, frame: Any, result: Any) -> None:
         self.write(result.index, _outline_of(result))
 
-    def close(self, ok: bool) -> None:
-        """Rename the folder into place (``ok``), or remove what was written."""
-        if not ok:
+    def close(self, error: BaseException | None = None) -> None:
+        """Rename the folder into place (``error`` None), or remove what was written."""
+        if error is not None:
             shutil.rmtree(self.tmp, ignore_errors=True)
             return
         if self.folder.exists():
@@ -128,8 +130,8 @@ def check_export_outputs(masks: str | os.PathLike[str] | None, vot: str | os.Pat
         check_output_folders(vot)
 
 
-class VotSink:
-    """VOT region lines, one per frame pushed, written atomically (see the module docstring)."""
+class VotSink(Sink):
+    """VOT region lines, one per frame, written atomically (see the module docstring); a sink of the frame loop."""
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
         self.path = Path(path)
@@ -144,13 +146,27 @@ class VotSink:
         else:
             self.lines.append(",".join(f"{v:.2f}" for v in p.ravel()))
 
-    def push(self, result: Any) -> None:
+    def frame(self, frame: Any, result: Any) -> None:
         self.write(result.index, _outline_of(result))
 
-    def close(self, ok: bool) -> None:
-        if ok:
+    def close(self, error: BaseException | None = None) -> None:
+        if error is None:
             with atomic_path(self.path) as tmp:
                 tmp.write_text("\n".join(self.lines) + "\n", encoding="utf-8")
+
+
+def export_sinks(masks: str | os.PathLike[str] | None, vot: str | os.PathLike[str] | None, *,
+                 palette: bool = False) -> Callable[[Any], list[Sink]]:
+    """The sinks that write a run's masks and VOT region lines, made from the opened clip (the
+    ``sinks`` of :func:`trackcli.run.clips.track_clip`)."""
+    def make(video: Any) -> list[Sink]:
+        out: list[Sink] = []
+        if masks is not None:
+            out.append(MaskSink(masks, (video.width, video.height), video.frame_name, palette=palette))
+        if vot is not None:
+            out.append(VotSink(vot))
+        return out
+    return make
 
 
 @dataclass(frozen=True)
@@ -206,14 +222,15 @@ def export_track(track_csv: str | os.PathLike[str], clip: str | os.PathLike[str]
             for f, o in zip(frames, outlines):
                 for s in sinks:
                     s.write(int(f), o)
-        except BaseException:
+        except BaseException as exc:
             for s in sinks:
-                s.close(False)
+                s.close(exc)
             raise
         for s in sinks:
-            s.close(True)
+            s.close(None)
     return ExportResult(Path(masks) if masks is not None else None, Path(vot) if vot is not None else None,
                         len(frames))
 
 
-__all__ = ["ExportResult", "MASK_FOLDER_MARK", "MaskSink", "VotSink", "check_export_outputs", "export_track"]
+__all__ = ["ExportResult", "MASK_FOLDER_MARK", "MaskSink", "VotSink", "check_export_outputs", "export_sinks",
+           "export_track"]

@@ -4,7 +4,7 @@
 clip shares once, then runs :func:`trackcli.run.clips.track_clip` on each clip in turn and
 yields what became of it.  With several clips, a clip that fails is reported in its
 :class:`ClipOutcome` and the others still run; a single clip's error is raised.  Each track
-may also be written as masks and VOT region lines (:func:`trackcli.run.export.export_track`),
+may also be written as masks and VOT region lines (:func:`trackcli.run.export.export_sinks`),
 and a run whose sample set collapsed is warned about (:func:`trackcli.run.checks.track_warnings`).
 """
 
@@ -63,7 +63,7 @@ def track_clips(clips: Sequence[str], *, config: str | None, overrides: dict[str
     does not read is refused.  With ``masks``
     (a folder; with several clips, a folder ``masks/NAME`` per clip) and ``vot`` (a file; one
     clip only), each track's outlines are written as mask PNGs (``palette``: palette PNGs)
-    and VOT region lines once it is tracked.
+    and VOT region lines while it is tracked (sinks of the frame loop, committed with the track).
     """
     from trackcli.dynamics.model import load_model
     from trackcli.run.clips import track_clip
@@ -84,6 +84,8 @@ def track_clips(clips: Sequence[str], *, config: str | None, overrides: dict[str
     if palette and not masks:
         raise OptionError("--palette goes with --masks")
     mask_dirs = {n: (None if not masks else Path(masks) / n if len(clips) > 1 else Path(masks)) for n in names}
+    from trackcli.run.export import ExportResult, export_sinks
+
     if masks or vot:
         from trackcli.run.export import check_export_outputs
 
@@ -102,12 +104,10 @@ def track_clips(clips: Sequence[str], *, config: str | None, overrides: dict[str
         try:
             summary = track_clip(clip, settings=settings, outdir=outdir, model=model, template=template,
                                  tracker=tracker, name=name, rrd=rrd, smooth=smooth, progress=progress,
-                                 explicit=explicit, inputs={"-c/--config": config}, options=options)
+                                 explicit=explicit, inputs={"-c/--config": config}, options=options,
+                                 sinks=export_sinks(mask_dirs[name], vot, palette=palette) if masks or vot else None)
             if masks or vot:
-                from trackcli.run.export import export_track
-
-                exported = export_track(summary.csv, clip, masks=mask_dirs[name], vot=vot, palette=palette,
-                                        fps=settings.video.fps)
+                exported = ExportResult(mask_dirs[name], Path(vot) if vot else None, summary.frames)
         except TrackcliError as exc:
             if len(clips) == 1:
                 raise
