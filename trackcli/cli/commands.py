@@ -212,6 +212,8 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
     import numpy as np
 
     from trackcli.shapes import draw, structure
+    from trackcli.run import drawing
+    from trackcli.segment import grabcut, masks
     from trackcli.io.outputs import atomic_paths, check_output_folders, output_dir, refuse_overwriting_inputs
     from trackcli.shapes.template import save_template
     from trackcli.io.video import open_video
@@ -251,14 +253,14 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
     elif box:
         b = draw.parse_numbers(box, 4, "--box")
         # GrabCut takes seconds on a large frame (longer on a grey one, whose texture is segmented too)
-        with _progress(click.get_current_context(), draw.segment_runs(frame.image), "segmenting the box") as bar:
-            seg = draw.segment_candidates(frame.image, tuple(b), progress=bar.update)
-        mask_image, note = _confirm_mask(seg, video, frame, lambda m: _fit_outline(draw.mask_outline(m), n_ctrl,
+        with _progress(click.get_current_context(), grabcut.segment_runs(frame.image), "segmenting the box") as bar:
+            seg = grabcut.segment_candidates(frame.image, tuple(b), progress=bar.update)
+        mask_image, note = _confirm_mask(seg, video, frame, lambda m: _fit_outline(masks.mask_outline(m), n_ctrl,
                                                                                     degree, size, _quiet=True))
-        outline = draw.mask_outline(mask_image)
+        outline = masks.mask_outline(mask_image)
         source = f"box {box} ({seg.method}{note})"
     else:
-        outline = draw.mask_outline(draw.load_mask(mask, size))
+        outline = masks.mask_outline(masks.load_mask(mask, size))
         source = f"mask {mask}"
     template = _fit_outline(outline, n_ctrl, degree, size, closed=not open_curve, clip=str(clip), frame=frame_index,
                             source=source)
@@ -267,7 +269,7 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
     if specs:
         parts = structure.cut_parts(cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY), specs)
         template = dataclasses.replace(template, extra={**template.extra, "parts": structure.parts_to_yaml(parts)})
-    vis = draw.render_preview(frame.image, template, n_normals=n_normals)
+    vis = drawing.render_preview(frame.image, template, n_normals=n_normals)
     for name, (x, y, w, h) in specs:
         cv2.rectangle(vis, (int(round(x)), int(round(y))), (int(round(x + w)), int(round(y + h))), (0, 200, 255), 1)
     ok, buf = cv2.imencode(".png", vis)
@@ -276,17 +278,17 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
             save_template(tmps[0], template)
             tmps[1].write_bytes(buf.tobytes())
             if rrd:
-                draw.record_template(tmps[2], frame.image, template, n_normals=n_normals)
+                drawing.record_template(tmps[2], frame.image, template, n_normals=n_normals)
     log.info("template %s (%d control points) from %s", out, template.n_ctrl, source)
     click.echo(f"wrote {out} and {png}" + (f" and {rrd}" if rrd else ""))
 
 
 def _fit_outline(outline, n_ctrl, degree: int, size: tuple[int, int], **kw):
     """``draw``'s B-spline fit of ``outline`` (the written template and ``--box``'s trial ones alike)."""
-    from trackcli.shapes import draw
+    from trackcli.run import drawing
 
-    return draw.fit_template(outline, n_ctrl or draw.DEFAULT_CTRL, degree=degree, frame_size=size,
-                             detail_ctrl=None if n_ctrl else draw.DETAIL_CTRL, **kw)
+    return drawing.fit_template(outline, n_ctrl or drawing.DEFAULT_CTRL, degree=degree, frame_size=size,
+                                detail_ctrl=None if n_ctrl else drawing.DETAIL_CTRL, **kw)
 
 
 def _confirm_mask(seg, video, frame, fit):
