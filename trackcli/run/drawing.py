@@ -20,6 +20,8 @@ from trackcli.shapes.draw import canonical_start, fit_error, polygon_mask, resam
 
 log = logging.getLogger(__name__)
 
+#: a fit that strayed from the outline is replaced by a fit without folds when that covers the
+#: object (IoU with the outline) by at least this much more than the convex hull does; else
 #: the hull is taken
 REFIT_GAIN = 0.1
 #: control points of ``draw`` when none are asked for; an outline with detail that many cannot

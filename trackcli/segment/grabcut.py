@@ -72,8 +72,6 @@ PRUNE_WINDOW = 1.0
 #: object's colour is still mostly the surroundings' colours)
 REGION_CORE = 0.65
 REGION_WINDOW = 0.08
-#: a fit that strayed from the outline is replaced by a fit without folds when that covers the
-#: object (IoU with the outline) by at least this much more than the convex hull does; else
 
 
 def segment_runs(image_bgr: np.ndarray) -> int:
