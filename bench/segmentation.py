@@ -83,12 +83,13 @@ def footage_cases(footage: Path, every: int):
 
 def template_mask(mask: np.ndarray) -> np.ndarray:
     """The mask of the template ``draw`` fits to ``mask``'s outline (its default control points:
-    12, or 24 for detail 12 cannot follow; its fallbacks included), rasterised."""
+    from 12 up until the curve covers the outline, :func:`trackcli.run.drawing.fit_covering`),
+    rasterised."""
     import logging
 
     from trackcli.shapes.spline import dense_polygon
 
-    logging.getLogger("trackcli").setLevel(logging.ERROR)  # the fallbacks' warnings
+    logging.getLogger("trackcli").setLevel(logging.ERROR)  # the fit's warnings
     t = drawing.fit_template(masks.mask_outline(mask), drawing.DEFAULT_CTRL, frame_size=(mask.shape[1], mask.shape[0]),
                              detail_ctrl=drawing.DETAIL_CTRL)
     return draw.polygon_mask(dense_polygon(t.Q, t.basis(), 400), (mask.shape[1], mask.shape[0]))

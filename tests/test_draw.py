@@ -835,33 +835,61 @@ def test_a_hand_is_its_hull_with_few_control_points_and_traced_with_enough():
     assert draw.fit_error(enough, outline) <= 0.1 * np.sqrt(cv2.contourArea(outline.astype(np.float32)))
 
 
-def test_an_outline_twelve_control_points_cannot_follow_is_fitted_with_more_before_the_hull(caplog):
-    # draw's default: 12 control points, and where those would give the hull, 24 if they follow
-    # the outline and cover the object clearly better than the hull does
+def test_without_n_ctrl_the_control_points_grow_until_the_curve_covers_the_outline(caplog):
+    # draw's default: from 12 control points up, until the filled curve's IoU with the filled
+    # outline reaches the target; the fit made by local parameters neither folds nor loops
+    from test_spline import _runs_against
+
     mask = _hand_mask()
-    outline = masks.mask_outline(mask).astype(float)
-    with caplog.at_level(logging.WARNING, logger="trackcli"):
+    outline = draw.canonical_start(masks.mask_outline(mask).astype(float))
+    with caplog.at_level(logging.INFO, logger="trackcli"):
         t = drawing.fit_template(outline, drawing.DEFAULT_CTRL, detail_ctrl=drawing.DETAIL_CTRL, source="mask")
-    assert t.n_ctrl == drawing.DETAIL_CTRL and t.source.startswith("mask") and t.source.endswith("(24 control points)")
-    assert "convex hull" not in t.source
-    assert masks.mask_iou(template_mask(t, (400, 400)), mask) > 0.9
-    assert draw.fit_error(t, outline) <= 0.1 * np.sqrt(cv2.contourArea(outline.astype(np.float32)))
-    # one warning, for the fit taken: the trial fit with 24 says nothing of its own
-    warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
-    assert len(warnings) == 1 and "fitted with 24" in warnings[0], warnings
+    assert drawing.DEFAULT_CTRL < t.n_ctrl < drawing.DETAIL_CTRL
+    assert t.source.startswith("mask (") and f"{t.n_ctrl} control points, IoU" in t.source
+    assert masks.mask_iou(template_mask(t, (400, 400)), mask) >= drawing.TARGET_IOU - 0.01
+    assert _runs_against(t.Q, t.n_ctrl, outline) == 0
+    # the log gives every count tried with its IoU, and warns of nothing
+    assert f"fitted with {t.n_ctrl} control points (IoU with the outline for 12: " in caplog.text
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+    # one step fewer did not reach the target: the count is the least that does
+    tried = dict(drawing.fit_covering(outline, 12, 64).tried)
+    below = max(n for n in tried if n < t.n_ctrl)
+    assert tried[below] < drawing.TARGET_IOU <= tried[t.n_ctrl]
 
 
-def test_more_control_points_do_not_replace_a_hull_that_covers_the_object_well():
-    # a disc with a deep, narrow cut: 12 control points cannot follow the cut, 24 can, but the
-    # hull already covers the disc nearly as well, and it smooths over the errors of a mask
-    m = np.zeros((300, 300), np.uint8)
-    cv2.circle(m, (150, 150), 100, 255, -1)
-    cv2.line(m, (150, 150), (150, 45), 0, 9)
+def test_an_outline_the_first_control_points_cover_gets_no_more():
+    # an ellipse, and a disc with a deep cut 9 px wide that a smooth curve passes over while
+    # still covering the disc to the target: 12 control points, whatever the cap
+    for outline in (draw.ellipse_outline(*CLIP_ELLIPSE), None):
+        if outline is None:
+            m = np.zeros((300, 300), np.uint8)
+            cv2.circle(m, (150, 150), 100, 255, -1)
+            cv2.line(m, (150, 150), (150, 45), 0, 9)
+            outline = masks.mask_outline(m).astype(float)
+        t = drawing.fit_template(outline, 12, detail_ctrl=64)
+        assert t.n_ctrl == 12 and "convex hull" not in t.source
+
+
+def test_the_control_points_stop_at_the_cap_or_when_more_stop_paying(caplog, monkeypatch):
+    # a comb of 12 teeth 4 px wide: 16 control points at most cannot follow it, and draw says so
+    m = np.zeros((200, 300), np.uint8)
+    m[120:180, 20:280] = 255
+    for x in range(24, 280, 21):
+        m[20:120, x:x + 4] = 255
     outline = masks.mask_outline(m).astype(float)
-    hull = cv2.fillConvexPoly(np.zeros_like(m), cv2.convexHull(outline.astype(np.int32)), 255)
-    assert masks.mask_iou(hull, m) > 1.0 - drawing.REFIT_GAIN  # no fit can cover it REFIT_GAIN better
-    t = drawing.fit_template(outline, 12, detail_ctrl=24)
-    assert t.n_ctrl == 12 and t.source.endswith("(convex hull)")
+    with caplog.at_level(logging.WARNING, logger="trackcli"):
+        t = drawing.fit_template(outline, 12, detail_ctrl=16)
+    assert t.n_ctrl in (12, 16) and "the curve covers the outline to IoU 0." in caplog.text
+    assert "; up to 16 tried)" in caplog.text
+    # with a target no curve reaches, growing stops once STALL_STEPS steps in a row gain less
+    # than MIN_GAIN (an ellipse is covered as well as it can be from the first step on), and
+    # the fewest control points within MIN_GAIN of the best are kept
+    monkeypatch.setattr(drawing, "TARGET_IOU", 1.01)
+    cover = drawing.fit_covering(draw.ellipse_outline(*CLIP_ELLIPSE), 12, 128)
+    ns, ious = zip(*cover.tried)
+    assert len(ns) == 1 + drawing.STALL_STEPS and ns[-1] < 128
+    assert np.all(np.diff(ious) < drawing.MIN_GAIN)
+    assert cover.n_ctrl == 12 and cover.iou > 0.98
 
 
 def test_draw_takes_more_control_points_only_when_none_are_given(tmp_path):
@@ -876,7 +904,8 @@ def test_draw_takes_more_control_points_only_when_none_are_given(tmp_path):
     auto = runner.invoke(cli, ["draw", str(frames), "--fps", "25", "--mask", str(tmp_path / "mask.png"),
                                "-o", str(tmp_path / "auto.yaml")])
     assert auto.exit_code == 0, auto.output
-    assert load_template(tmp_path / "auto.yaml").n_ctrl == 24
+    auto_t = load_template(tmp_path / "auto.yaml")
+    assert drawing.DEFAULT_CTRL < auto_t.n_ctrl <= drawing.DETAIL_CTRL and "IoU" in auto_t.source
     given = runner.invoke(cli, ["draw", str(frames), "--fps", "25", "--mask", str(tmp_path / "mask.png"),
                                 "--n-ctrl", "12", "-o", str(tmp_path / "given.yaml")])
     assert given.exit_code == 0, given.output

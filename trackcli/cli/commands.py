@@ -260,7 +260,7 @@ def draw_cmd(clip, frame_index, points, ellipse, box, mask, part_specs, n_ctrl, 
         outline = masks.mask_outline(mask_image)
         source = f"box {box} ({seg.method}{note})"
     else:
-        outline = masks.mask_outline(masks.load_mask(mask, size))
+        outline = masks.object_outline(masks.load_mask(mask, size))
         source = f"mask {mask}"
     template = _fit_outline(outline, n_ctrl, degree, size, closed=not open_curve, clip=str(clip), frame=frame_index,
                             source=source)

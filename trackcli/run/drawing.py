@@ -24,23 +24,34 @@ log = logging.getLogger(__name__)
 #: object (IoU with the outline) by at least this much more than the convex hull does; else
 #: the hull is taken
 REFIT_GAIN = 0.1
-#: control points of ``draw`` when none are asked for; an outline with detail that many cannot
-#: follow (an open hand's fingers) is fitted with DETAIL_CTRL before the convex hull is taken
+#: control points ``draw`` starts from when none are asked for, and the most it grows to
+#: (:func:`fit_template` with ``detail_ctrl``)
 DEFAULT_CTRL = 12
-DETAIL_CTRL = 24
+DETAIL_CTRL = 64
+#: the control points grow (through :data:`CTRL_STEPS`) until the curve's IoU with the outline
+#: reaches TARGET_IOU, or STALL_STEPS steps in a row each gain less than MIN_GAIN; of the fits
+#: made, the one with the fewest control points within MIN_GAIN of the best is kept
+TARGET_IOU = 0.95
+MIN_GAIN = 0.005
+STALL_STEPS = 2
+CTRL_STEPS = (12, 16, 20, 24, 32, 40, 48, 64, 80, 96, 128)
+#: thin parts: with THIN_RADIUS r > 0 the parts of the outline thinner than 2r + 1 px are opened
+#: away before the fit
+THIN_RADIUS = 0
+#: a fit follows an outline resampled to one point per pixel of its length, within these bounds
+FIT_POINTS = (256, 2000)
 
 
 def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: bool = True, clip: str | None = None,
                  frame: int = 0, frame_size: tuple[int, int] | None = None, source: str = "",
                  detail_ctrl: int | None = None, _quiet: bool = False):
-    """Fit a B-spline with ``n_ctrl`` control points to an ordered outline; return a Template.
+    """Fit a B-spline to an ordered outline; return a Template.
 
-    A fit that strays from the outline falls back (thin parts opened away, a refit without
-    folds, the convex hull; see ``draw``).  With ``detail_ctrl`` > ``n_ctrl``, an outline that
-    would get its convex hull is first fitted with ``detail_ctrl`` control points, and that fit
-    is taken if it is not a hull itself and covers the object (IoU with the outline) at least
-    :data:`REFIT_GAIN` better than the hull: the fingers of an open hand rather than the hull
-    about them, which takes in the background between them.
+    With ``detail_ctrl`` > ``n_ctrl`` (``draw`` without ``--n-ctrl``) a closed outline gets as
+    many control points as it needs, from ``n_ctrl`` up to ``detail_ctrl``
+    (:func:`fit_covering`).  Otherwise the curve has ``n_ctrl`` control points, and a fit that
+    strays from the outline falls back (thin parts opened away, a refit without folds, the
+    convex hull; see ``draw``).
     """
     from trackcli.shapes.spline import fit
     from trackcli.shapes.template import Template
@@ -55,8 +66,16 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
         return Template(np.column_stack([Q[:n_ctrl], Q[n_ctrl:]]), degree=degree, closed=closed, clip=clip,
                         frame=frame, frame_size=frame_size, source=source + note)
 
-    template = make(fit(outline, n_ctrl, degree=degree, closed=closed))
     warn = log.warning if not _quiet else (lambda *args: None)  # a trial fit says nothing
+    if closed and detail_ctrl is not None and detail_ctrl > n_ctrl:
+        cover = fit_covering(outline, n_ctrl, detail_ctrl, degree=degree)
+        n_ctrl = cover.n_ctrl
+        (log.info if not _quiet else (lambda *args: None))("%s", cover.describe())
+        if cover.iou < TARGET_IOU:
+            warn("the curve covers the outline to IoU %.2f only (%d control points; up to %d tried)",
+                 cover.iou, cover.n_ctrl, cover.tried[-1][0])
+        return make(cover.Q, cover.note())
+    template = make(fit(outline, n_ctrl, degree=degree, closed=closed))
     if not (closed and len(outline) >= 3):
         return template
     import cv2
@@ -116,19 +135,6 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
         warn("the %d-control-point fit folded on the outline (%.0f px off it); "
              "refitted without folds (%.0f px)", n_ctrl, err, best[0])
         return best[1]
-    # A deep, narrow concavity (a swan's neck, an arm held out) that n_ctrl control points
-    # cannot follow can also throw the fit off.  More control points may follow it (an open
-    # hand's fingers); taken only where they cover the object clearly better than the hull,
-    # which smooths over a mask's errors (a plastic bag's crumpled outline).
-    if detail_ctrl is not None and detail_ctrl > n_ctrl:
-        detailed = fit_template(outline, detail_ctrl, degree=degree, closed=True, clip=clip, frame=frame,
-                                frame_size=frame_size, source=source, _quiet=True)
-        iou = covers(detailed)
-        if not detailed.source.endswith(" (convex hull)") and iou >= hull_iou + REFIT_GAIN:
-            warn("the outline has detail %d control points cannot follow (fit %.0f px off it); "
-                 "fitted with %d, which cover it better than its convex hull (IoU %.2f against %.2f)",
-                 n_ctrl, err, detail_ctrl, iou, hull_iou)
-            return dataclasses.replace(detailed, source=detailed.source + f" ({detail_ctrl} control points)")
     # The convex hull is smooth, always fits, and is what a contour of this many control
     # points can track.
     hull = resample_polygon(canonical_start(hull), max(8 * n_ctrl, 128), True)
@@ -137,6 +143,86 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
     warn("the outline has detail %d control points cannot follow (fit %.0f px off it); "
          "using its convex hull (more control points: --n-ctrl)", n_ctrl, err)
     return make(fit(hull, n_ctrl, degree=degree, closed=True, strict=True), " (convex hull)")
+
+
+@dataclasses.dataclass(frozen=True)
+class Covering:
+    """The fit :func:`fit_covering` kept: control vector ``Q`` of ``n_ctrl`` control points,
+    its ``iou`` with the outline, the thin parts taken away (``thin``: the opening's radius
+    in px, 0 for none), and the IoU of each number of control points tried (``tried``)."""
+
+    Q: np.ndarray
+    n_ctrl: int
+    iou: float
+    thin: int
+    tried: tuple[tuple[int, float], ...]
+
+    def note(self) -> str:
+        """What the template's source says about the fit."""
+        thin = f"thin parts under {2 * self.thin + 1} px removed, " if self.thin else ""
+        return f" ({thin}{self.n_ctrl} control points, IoU {self.iou:.2f} with the outline)"
+
+    def describe(self) -> str:
+        """One line for the log: the control points tried and what each covered."""
+        steps = ", ".join(f"{n}: {iou:.3f}" for n, iou in self.tried)
+        thin = f"; thin parts under {2 * self.thin + 1} px removed" if self.thin else ""
+        return f"fitted with {self.n_ctrl} control points (IoU with the outline for {steps}){thin}"
+
+
+def _without_thin_parts(outline: np.ndarray, radius: int) -> np.ndarray | None:
+    """The closed outline with the parts thinner than ``2 radius + 1`` px opened away (the
+    largest region left), or None when nothing is left or nothing changed."""
+    import cv2
+
+    lo = np.floor(outline.min(axis=0)) - radius - 2
+    hi = np.ceil(outline.max(axis=0)) + radius + 2
+    m = polygon_mask(outline - lo, (int(hi[0] - lo[0]) + 1, int(hi[1] - lo[1]) + 1))
+    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+    opened = cv2.morphologyEx(m, cv2.MORPH_OPEN, disc)
+    if np.count_nonzero(opened) < 9 or np.array_equal(opened, m):
+        return None
+    return canonical_start(mask_outline(opened) + lo)
+
+
+def fit_covering(outline: np.ndarray, least: int, most: int, *, degree: int = 2) -> Covering:
+    """A closed B-spline that covers the closed ``outline``, with as few control points
+    between ``least`` and ``most`` as that takes.
+
+    The number of control points grows through :data:`CTRL_STEPS` (``least`` first, ``most``
+    last) until the filled curve's IoU with the filled outline reaches :data:`TARGET_IOU`, or
+    :data:`STALL_STEPS` steps in a row each gain less than :data:`MIN_GAIN`; of the fits made, the one with the fewest control
+    points within :data:`MIN_GAIN` of the best IoU is kept.  Each fit is
+    :func:`trackcli.shapes.draw.fit_closed` (parameters by arc length, refined locally, so
+    the curve does not fold or loop however many control points it has).
+
+    Thin parts (a kite's lines, a flamingo's legs) are followed as far as that covers the
+    outline: with parameters that only move locally they cannot throw the curve into loops
+    or folds.
+    """
+    from trackcli.run.evaluate import polygon_iou
+    from trackcli.shapes.draw import fit_closed
+    from trackcli.shapes.spline import SplineBasis, dense_polygon
+
+    outline = np.asarray(outline, dtype=float)
+    shape = outline
+    thin = 0
+    if THIN_RADIUS > 0:
+        opened = _without_thin_parts(outline, THIN_RADIUS)
+        if opened is not None and len(opened) >= 3:
+            shape, thin = opened, THIN_RADIUS
+    length = float(np.hypot(*np.diff(np.vstack([shape, shape[:1]]), axis=0).T).sum())
+    pts = resample_polygon(shape, int(np.clip(length, max(FIT_POINTS[0], 4 * most), FIT_POINTS[1])), True)
+    steps = sorted({least, most} | {n for n in CTRL_STEPS if least < n < most})
+    fits: list[tuple[float, int, np.ndarray]] = []  # (IoU, n, Q)
+    for n in steps:
+        Q = fit_closed(pts, n, degree=degree)
+        fits.append((polygon_iou(dense_polygon(Q, SplineBasis(n, degree, True), 16 * n), outline), n, Q))
+        gains = np.diff([f[0] for f in fits])[-STALL_STEPS:]
+        if fits[-1][0] >= TARGET_IOU or (len(gains) == STALL_STEPS and np.all(gains < MIN_GAIN)):
+            break
+    top = max(f[0] for f in fits)
+    iou, n, Q = next(f for f in fits if f[0] >= top - MIN_GAIN)
+    return Covering(Q, n, iou, thin, tuple((f[1], f[0]) for f in fits))
 
 
 def render_preview(image_bgr: np.ndarray, template, *, n_normals: int = 24, half_width: float = 15.0) -> np.ndarray:

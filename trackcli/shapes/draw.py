@@ -186,3 +186,125 @@ def resample_polygon(points: np.ndarray, n: int, closed: bool) -> np.ndarray:
     t = np.concatenate([[0.0], np.cumsum(seg)])
     u = np.linspace(0.0, t[-1], n, endpoint=not closed)
     return np.column_stack([np.interp(u, t, pts[:, 0]), np.interp(u, t, pts[:, 1])])
+
+
+# ---------------------------------------------------------------------------------------------
+# A closed curve through an outline, its control points where the outline bends
+
+#: share of a closed fit's parametrisation given by where the outline bends (the rest by arc
+#: length): see :func:`outline_params`
+BEND_SHARE = 0.5
+#: rounds of :func:`fit_closed`: each moves every point's parameter to its closest place on
+#: the curve (within half a span either way) and solves for the control points again
+FIT_ROUNDS = 6
+#: ... to the closest of the curve's points sampled this many times per span
+FIT_SAMPLES = 64
+
+
+def bend_vertices(points: np.ndarray, n: int) -> np.ndarray:
+    """Indices (sorted, the first 0) of ``n`` vertices of a closed polygon ``(P, 2)`` that
+    keep its shape: chosen top-down in the order of Douglas and Peucker, each next vertex the
+    one farthest from the chord of the stretch between two chosen ones that holds it.
+    Vertices gather where the outline bends (a leg, a beak) and are sparse along straight
+    or gently curved runs."""
+    import heapq
+
+    p = np.asarray(points, dtype=float)
+    P = len(p)
+    n = min(int(n), P)
+
+    def farthest(a: int, b: int) -> tuple[float, int]:
+        idx = np.arange(a + 1, b if b > a else b + P) % P
+        if idx.size == 0:
+            return 0.0, -1
+        chord = p[b] - p[a]
+        q = p[idx] - p[a]
+        length = float(np.hypot(*chord))
+        dist = np.hypot(*q.T) if length < 1e-9 else np.abs(chord[0] * q[:, 1] - chord[1] * q[:, 0]) / length
+        k = int(np.argmax(dist))
+        return float(dist[k]), int(idx[k])
+
+    chosen = [0, int(np.argmax(np.hypot(*(p - p[0]).T)))]
+    heap: list[tuple[float, int, int, int]] = []
+    for a, b in ((chosen[0], chosen[1]), (chosen[1], chosen[0])):
+        d, k = farthest(a, b)
+        if k >= 0:
+            heapq.heappush(heap, (-d, a, b, k))
+    while len(chosen) < n and heap:
+        _, a, b, k = heapq.heappop(heap)
+        chosen.append(k)
+        for x, y in ((a, k), (k, b)):
+            d, j = farthest(x, y)
+            if j >= 0:
+                heapq.heappush(heap, (-d, x, y, j))
+    return np.sort(np.asarray(chosen, dtype=int))
+
+
+def outline_params(points: np.ndarray, n_ctrl: int, bend_share: float = BEND_SHARE) -> np.ndarray:
+    """Spline parameters ``s ∈ [0, n_ctrl)`` of the points of a closed polygon, the first at 0.
+
+    A closed uniform B-spline gives each control point one span of the parameter, so where
+    the parameter runs fast along the outline the control points are dense.  By arc length
+    they are spread evenly; by :func:`bend_vertices` the ``k``-th of ``n_ctrl`` vertices
+    chosen where the outline bends gets ``s = k`` (arc length between them), and control
+    points gather at the bends.  The parameters returned are ``bend_share`` of the second
+    and the rest of the first: both increase along the outline, and so does their mix.
+    """
+    p = np.asarray(points, dtype=float)
+    P = len(p)
+    seg = np.hypot(*np.diff(np.vstack([p, p[:1]]), axis=0).T)
+    t = np.concatenate([[0.0], np.cumsum(seg)])
+    total = max(float(t[-1]), 1e-12)
+    by_arc = n_ctrl * t[:-1] / total
+    if bend_share <= 0:
+        return by_arc
+    v = bend_vertices(p, n_ctrl)
+    k = len(v)
+    # for each point: the chosen vertex at or before it, and the share of the way to the next
+    before = np.searchsorted(v, np.arange(P), side="right") - 1
+    start, stop = t[v[before]], np.where(before + 1 < k, t[v[np.minimum(before + 1, k - 1)]], total)
+    by_bends = (before + (t[:-1] - start) / np.maximum(stop - start, 1e-12)) * (n_ctrl / k)
+    return bend_share * by_bends + (1.0 - bend_share) * by_arc
+
+
+def fit_closed(points: np.ndarray, n_ctrl: int, *, degree: int = 2, bend_share: float | None = None,
+               rounds: int = FIT_ROUNDS) -> np.ndarray:
+    """A closed B-spline of ``n_ctrl`` control points through a closed polygon ``(P, 2)``
+    (``P`` at least ``n_ctrl``); returns ``Q = (Qx; Qy)``.
+
+    The points get parameters by :func:`outline_params`, and the control points solve the
+    linear least-squares problem (with a vanishing second-difference term, so that a span
+    without points is still determined).  Each of ``rounds`` rounds then moves every point's
+    parameter to the closest place on the curve (sampled :data:`FIT_SAMPLES` times a span)
+    within half a span either way of where it was, and solves again.  Parameters only move
+    locally, so they keep their order along the outline: the curve cannot fold back or throw
+    a loop to serve points elsewhere, which a fit that searches the whole curve for each
+    point (:func:`trackcli.shapes.spline.fit`) can do with many control points on an outline
+    with long thin parts.
+    """
+    from trackcli.shapes.spline import SplineBasis
+
+    p = np.asarray(points, dtype=float)
+    basis = SplineBasis(n_ctrl, degree, True)
+    L = float(basis.L)
+    s = np.mod(outline_params(p, n_ctrl, BEND_SHARE if bend_share is None else bend_share), L)
+    D = np.roll(np.eye(n_ctrl), -1, axis=1) - 2.0 * np.eye(n_ctrl) + np.roll(np.eye(n_ctrl), 1, axis=1)
+    smooth = D.T @ D
+
+    def solve(s: np.ndarray) -> np.ndarray:
+        B = basis.basis(s)
+        A = B.T @ B
+        return np.linalg.solve(A + 1e-6 * np.trace(A) / n_ctrl * smooth, B.T @ p)
+
+    # the curve is sampled FIT_SAMPLES times per span; each round a point's parameter moves
+    # to the closest sample within half a span either way
+    grid = basis.basis(np.arange(int(L) * FIT_SAMPLES) / FIT_SAMPLES)
+    reach = np.arange(-(FIT_SAMPLES // 2), FIT_SAMPLES // 2 + 1)
+    X = solve(s)
+    for _ in range(rounds):
+        curve = grid @ X
+        near = (np.rint(s * FIT_SAMPLES).astype(int)[:, None] + reach[None, :]) % len(curve)
+        best = np.argmin(np.sum((curve[near] - p[:, None, :]) ** 2, axis=2), axis=1)
+        s = near[np.arange(len(p)), best] / FIT_SAMPLES
+        X = solve(s)
+    return np.concatenate([X[:, 0], X[:, 1]])
