@@ -63,7 +63,8 @@ def write_clip(path: Path, frames: int = FRAMES) -> Path:
 
 
 def write_template(path: Path, clip: str, size=CLIP_SIZE, points=None) -> Path:
-    from trackcli.shapes.draw import ellipse_outline, fit_template
+    from trackcli.shapes.draw import ellipse_outline
+    from trackcli.run.drawing import fit_template
     from trackcli.shapes.template import save_template
 
     outline = ellipse_outline(70.0, 60.0, 28.0, 36.0) if points is None else np.asarray(points, float)

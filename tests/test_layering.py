@@ -46,6 +46,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("trackcli.shapes",),
     ("trackcli.dynamics", "trackcli.sample_data"),
     ("trackcli.observe",),
+    ("trackcli.segment",),
     ("trackcli.trackers",),
     ("trackcli.run",),
     ("trackcli.cli",),
@@ -53,10 +54,6 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 
 #: imports against the layers that remain, (importer, imported) -> why, and who removes them
 EXCEPTIONS: dict[tuple[str, str], str] = {
-    ("trackcli.shapes.draw", "trackcli.run.evaluate"):
-        "polygon_iou for draw's mask checks; segmentation is being moved out of shapes/draw.py",
-    ("trackcli.shapes.draw", "trackcli.observe.discriminant"):
-        "is_grey and local_mean_deviation for segmentation; moving out of shapes/draw.py with it",
 }
 
 #: import cycles between modules that remain (each as its modules, sorted) -> why

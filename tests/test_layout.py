@@ -13,10 +13,6 @@ PACKAGE = REPO / "trackcli"
 COMMAND_LINES = 300
 #: beyond this a module holds more than one idea
 MODULE_LINES = 700
-#: modules over MODULE_LINES being split now; each leaves the list when it is split
-TOO_LONG_FOR_NOW = {
-    "shapes/draw.py",
-}
 
 
 def line_counts(folder):
@@ -32,14 +28,8 @@ def test_command_modules_are_short():
 
 
 def test_no_module_is_too_long():
-    long = {name: n for name, n in line_counts(PACKAGE).items() if n > MODULE_LINES and name not in TOO_LONG_FOR_NOW}
+    long = {name: n for name, n in line_counts(PACKAGE).items() if n > MODULE_LINES}
     assert not long, f"modules over {MODULE_LINES} lines: {long}"
-
-
-def test_the_list_of_long_modules_only_names_long_ones():
-    counts = line_counts(PACKAGE)
-    stale = sorted(name for name in TOO_LONG_FOR_NOW if counts.get(name, 0) <= MODULE_LINES)
-    assert not stale, f"no longer over {MODULE_LINES} lines (or gone): take them off TOO_LONG_FOR_NOW: {stale}"
 
 
 def test_help_loads_neither_numpy_nor_opencv():

@@ -433,7 +433,8 @@ def _pixel_outline_of_ellipse(cx, cy, a, b, angle=0.0):
     """The pixel boundary of a filled ellipse, as a segmentation mask gives it."""
     import cv2
 
-    from trackcli.shapes.draw import canonical_start, mask_outline
+    from trackcli.shapes.draw import canonical_start
+    from trackcli.segment.masks import mask_outline
 
     m = np.zeros((int(cy + b + a + 20), int(cx + a + b + 20)), np.uint8)
     cv2.ellipse(m, ((cx, cy), (2 * a, 2 * b), angle), 255, -1)

@@ -5,6 +5,8 @@
 - :mod:`.batch` — a batch of clips and its results; :mod:`.manifest` its manifest, :mod:`.jobs`
   one job (a clip and its outputs), :mod:`.executors` the worker processes and Dask cluster.
 - :mod:`.train` — the track → learn cycle on training clips.
+- :mod:`.drawing` — the B-spline fit of a drawn outline, its preview and recording (``draw``).
+- :mod:`.confirm` — ``draw --box``'s masks tried on the frames that follow.
 - :mod:`.evaluate` — scores against ground truth (centre error, IoU, precision, success).
 - :mod:`.truth` — ground truth as ``eval`` reads it, with the true outlines of sample clips.
 - :mod:`.outline_columns` — the outline points of each row of a track CSV.

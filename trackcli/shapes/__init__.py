@@ -16,5 +16,6 @@ everything else (``tests/test_layering.py``).
   object's size, the measurement points.
 - :mod:`.template` — the template file (a curve drawn on one frame).
 - :mod:`.structure` — structure templates: parts with their patches (003).
-- :mod:`.draw` — headless outline extraction for templates (points, shapes, boxes, masks).
+- :mod:`.draw` — outlines to draw templates from: parsed points, ellipses, their checks and
+  polygon geometry (masks and boxes are segmented in :mod:`trackcli.segment`).
 """
