@@ -178,7 +178,7 @@ class CondensationSettings:
     init_deformation: float = _f(0.02, "float", "initial spread of the other shape components (init: template)", lo=0)
     init_speed: float = _f(0.0, "float", "initial spread of translational velocity, px/frame, for an object already moving on the first frame (init: template)", lo=0)
     histogram_bins: int = _f(64, "int", "bins of the horizontal-translation histogram", lo=2, hi=4096)
-    display_particles: int = _f(15, "int", "particle contours drawn per frame in the recording", lo=0, hi=10000)
+    display_particles: int = _f(10, "int", "particle contours drawn per frame in the recording", lo=0, hi=10000)
     threads: int = _f(0, "int", "threads that score the samples (0 = every core from 300 samples up with the discriminant, 2000 with the numpy models, one below); the results do not depend on it", lo=0, hi=256)
 
 

@@ -50,11 +50,11 @@ H264_PRESET = "superfast"
 #: and 25 frames/s, about 7.5 KB a frame.  On 8 DAVIS-2016 sequences at 854x480 constant
 #: rate factors gave 5-17 KB a frame depending on the content; a constant bit rate keeps every
 #: clip near the budget (PSNR 30-35 dB against the source frames).
-AV1_BITS_PER_PIXEL = 0.146
+AV1_BITS_PER_PIXEL = 0.10
 #: SVT-AV1 speed preset (0 slowest ... 12; 12 is run as 11): 100-150 frames/s at 854x480 on two cores.
 AV1_PRESET = 11
 #: A keyframe every this many seconds, so that the viewer can seek without decoding far back.
-AV1_KEYFRAME_SECONDS = 2.0
+AV1_KEYFRAME_SECONDS = 4.0
 #: SVT-AV1 refuses frames narrower or lower than this.
 AV1_MIN_SIDE = 64
 
