@@ -176,3 +176,24 @@ def test_a_tracked_854x480_clip_records_at_most_12_kb_a_frame(tmp_path):
         assert ru.read_index(rrd, entity, component) == list(range(n)), entity
     assert ru.count_rows(rrd, "series/translation", "Scalars:scalars") == n
     assert rrd.stat().st_size / n <= 12_000
+
+
+def test_a_dense_curve_is_stored_within_its_tolerance(tmp_path):
+    """``log_contour(..., tolerance=t)`` keeps few of a dense circle's points, each a given
+    point, and the line stays within ``t`` pixels of every point given."""
+    a = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+    circle = np.column_stack([200 + 80 * np.cos(a), 150 + 80 * np.sin(a)])
+    out = tmp_path / "c.rrd"
+    with Recording(out) as rec:
+        rec.set_frame(0, 0.0)
+        rec.log_contour("video/estimate", circle, tolerance=0.75)
+        rec.log_contour("video/exact", circle)
+    strip = np.array(ru.read_column(out, "video/estimate", "LineStrips2D:strips")[0][0])
+    assert len(strip) < 400 / 5
+    np.testing.assert_array_equal(strip[-1], strip[0])
+    kept = {tuple(p) for p in np.float32(circle).tolist()}
+    assert all(tuple(p) in kept for p in strip.tolist())
+    # the chords' farthest point from the circle: their midpoints, 80 - |midpoint - centre|
+    mid = 0.5 * (strip[1:] + strip[:-1])
+    assert np.max(80 - np.hypot(mid[:, 0] - 200, mid[:, 1] - 150)) <= 0.75
+    assert len(ru.read_column(out, "video/exact", "LineStrips2D:strips")[0][0]) == 401

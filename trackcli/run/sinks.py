@@ -33,10 +33,10 @@ SMOOTHED_RGB = (255, 0, 255)
 OUTLINE_RGB = (60, 255, 60)
 #: How far (pixels) a curve drawn in a recording may stray from the one computed: the estimate
 #: and the smoothed curve (dense polygons of a spline, drawn 2 px wide) are stored by the few
-#: points that keep them within this, a sixth of the points at 854x480 (Douglas-Peucker).
+#: points that keep them within this, a fifth of the points or fewer (Douglas-Peucker).
 CURVE_TOLERANCE = 0.75
 #: The same for the refined outline, which is traced along pixels: its steps of a pixel are
-#: the raster, not the shape, and a one-pixel tolerance stores a third of its points.
+#: the raster, not the shape; within 1.5 px it keeps a quarter of its points.
 OUTLINE_TOLERANCE = 1.5
 
 
