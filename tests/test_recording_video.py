@@ -140,3 +140,60 @@ def test_pixel_traced_outlines_keep_only_their_corners(tmp_path):
     np.testing.assert_array_equal(strip, [[10, 10], [30, 10], [30, 30], [10, 30], [10, 10]])
     strip = np.array(ru.read_column(out, "video/open", "LineStrips2D:strips")[0][0])
     np.testing.assert_array_equal(strip, [[10, 10], [30, 10], [30, 14]])
+
+
+def _write_blob_clip(folder, n: int, size=(854, 480)) -> None:
+    """``n`` JPEG frames: a dark blob with a wavy rim gliding over a textured background."""
+    w, h = size
+    rng = np.random.default_rng(11)
+    texture = cv2.GaussianBlur(rng.integers(60, 200, (h, w, 3), dtype=np.uint8), (0, 0), 2)
+    folder.mkdir()
+    angles = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+    for i in range(n):
+        img = np.roll(texture, 2 * i, axis=1).copy()
+        radius = 90 + 8 * np.sin(7 * angles + 0.2 * i)
+        rim = np.column_stack([300 + 4 * i + 1.3 * radius * np.cos(angles), 240 + radius * np.sin(angles)])
+        cv2.fillPoly(img, [np.round(rim).astype(np.int32)], (40, 30, 30))
+        cv2.imwrite(str(folder / f"{i:05d}.jpg"), img, [cv2.IMWRITE_JPEG_QUALITY, 90])
+
+
+def test_a_tracked_854x480_clip_records_at_most_12_kb_a_frame(tmp_path):
+    """The whole recording of a default run (frames, particles, estimate, refined outline,
+    series, layout) stays within 12 KB a frame at 854x480 (it took about 30 before)."""
+    n = 40
+    clip = tmp_path / "blob"
+    _write_blob_clip(clip, n)
+    template = tmp_path / "t.yaml"
+    runner = CliRunner()
+    res = runner.invoke(cli, ["draw", str(clip), "--ellipse", "300,240,117,90", "-o", str(template)])
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(cli, ["track", str(clip), "--template", str(template), "-o", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    rrd = tmp_path / "out" / "blob.condensation.rrd"
+    # what a user sees is all there: the frames, the particles, the estimate and the outline
+    for entity, component in (("video", "VideoStream:sample"), ("video/particles", "LineStrips2D:strips"),
+                              ("video/estimate", "LineStrips2D:strips"), ("video/outline", "LineStrips2D:strips")):
+        assert ru.read_index(rrd, entity, component) == list(range(n)), entity
+    assert ru.count_rows(rrd, "series/translation", "Scalars:scalars") == n
+    assert rrd.stat().st_size / n <= 12_000
+
+
+def test_a_dense_curve_is_stored_within_its_tolerance(tmp_path):
+    """``log_contour(..., tolerance=t)`` keeps few of a dense circle's points, each a given
+    point, and the line stays within ``t`` pixels of every point given."""
+    a = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+    circle = np.column_stack([200 + 80 * np.cos(a), 150 + 80 * np.sin(a)])
+    out = tmp_path / "c.rrd"
+    with Recording(out) as rec:
+        rec.set_frame(0, 0.0)
+        rec.log_contour("video/estimate", circle, tolerance=0.75)
+        rec.log_contour("video/exact", circle)
+    strip = np.array(ru.read_column(out, "video/estimate", "LineStrips2D:strips")[0][0])
+    assert len(strip) < 400 / 5
+    np.testing.assert_array_equal(strip[-1], strip[0])
+    kept = {tuple(p) for p in np.float32(circle).tolist()}
+    assert all(tuple(p) in kept for p in strip.tolist())
+    # the chords' farthest point from the circle: their midpoints, 80 - |midpoint - centre|
+    mid = 0.5 * (strip[1:] + strip[:-1])
+    assert np.max(80 - np.hypot(mid[:, 0] - 200, mid[:, 1] - 150)) <= 0.75
+    assert len(ru.read_column(out, "video/exact", "LineStrips2D:strips")[0][0]) == 401

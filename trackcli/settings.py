@@ -178,7 +178,7 @@ class CondensationSettings:
     init_deformation: float = _f(0.02, "float", "initial spread of the other shape components (init: template)", lo=0)
     init_speed: float = _f(0.0, "float", "initial spread of translational velocity, px/frame, for an object already moving on the first frame (init: template)", lo=0)
     histogram_bins: int = _f(64, "int", "bins of the horizontal-translation histogram", lo=2, hi=4096)
-    display_particles: int = _f(60, "int", "particle contours drawn per frame in the recording", lo=0, hi=10000)
+    display_particles: int = _f(10, "int", "particle contours drawn per frame in the recording", lo=0, hi=10000)
     threads: int = _f(0, "int", "threads that score the samples (0 = every core from 300 samples up with the discriminant, 2000 with the numpy models, one below); the results do not depend on it", lo=0, hi=256)
 
 
@@ -255,7 +255,7 @@ class OutputSettings:
     rrd: bool = _f(True, "bool", "write a Rerun recording (.rrd)")
     jpeg_quality: int = _f(80, "int", "JPEG quality of frames encoded for recordings (frames kept as their source's JPEG are not encoded again)", lo=10, hi=100)
     frames: str = _f("auto", "str", "how recordings store frames: auto (an AV1 MP4 recorded whole embedded as it is; otherwise "
-                     "the frames encoded as AV1 video, which the native Rerun viewer decodes by itself, about 7.5 KB a frame "
+                     "the frames encoded as AV1 video, which the native Rerun viewer decodes by itself, about 5-6 KB a frame "
                      "at 854x480; JPEG when PyAV's AV1 encoder is missing or the frames are under 64x64, the source's own "
                      "JPEGs kept as they are), av1 (always encode AV1), jpeg (every frame encoded as JPEG at jpeg_quality, "
                      "shown by every Rerun viewer), asset (the MP4 clip embedded as a video; the native viewer needs FFmpeg "

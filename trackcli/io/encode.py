@@ -14,7 +14,7 @@ frames/s here and does not play in many common players.
   exactly one shown frame, the keyframes with their sequence header: what Rerun's
   ``VideoStream`` expects.  The encoder runs in low-delay mode (no frame reordering, no
   look-ahead), so each frame's sample comes out as the frame goes in, and at a constant bit
-  rate of :data:`AV1_BITS_PER_PIXEL` per pixel and frame (about 7.5 KB a frame at 854x480).
+  rate of :data:`AV1_BITS_PER_PIXEL` per pixel and frame (about 5-6 KB a frame at 854x480).
 
 PyAV's API used here (``av.open``, ``add_stream``, ``CodecContext.create``,
 ``VideoFrame.from_ndarray``, ``Packet.is_keyframe``) is the same from PyAV 14 to 19.
@@ -46,15 +46,19 @@ AV1_ENCODER = "libsvtav1"
 H264_CRF = 23
 H264_PRESET = "superfast"
 
-#: Bits per pixel and frame of the AV1 stream in recordings: 0.146 is 1.5 Mbit/s at 854x480
-#: and 25 frames/s, about 7.5 KB a frame.  On 8 DAVIS-2016 sequences at 854x480 constant
-#: rate factors gave 5-17 KB a frame depending on the content; a constant bit rate keeps every
-#: clip near the budget (PSNR 30-35 dB against the source frames).
-AV1_BITS_PER_PIXEL = 0.146
+#: Bits per pixel and frame of the AV1 stream in recordings: 0.10 is 1 Mbit/s at 854x480
+#: and 25 frames/s, about 5 KB a frame (5.8 KB with the first keyframe on a 75-frame clip).  On 8
+#: DAVIS-2016 sequences at 854x480 constant rate factors gave 5-17 KB a frame depending on the
+#: content; a constant bit rate keeps every clip near the budget.  A whole recording is to stay
+#: within 12 KB a frame at 854x480 with its overlays; 0.146 (7.5 KB) left too little room for
+#: them, and cost 0.9 dB of PSNR less than it bought (DAVIS boat: 33.0 dB at 0.146, 32.5 at
+#: 0.12, 32.1 at 0.10).
+AV1_BITS_PER_PIXEL = 0.10
 #: SVT-AV1 speed preset (0 slowest ... 12; 12 is run as 11): 100-150 frames/s at 854x480 on two cores.
 AV1_PRESET = 11
-#: A keyframe every this many seconds, so that the viewer can seek without decoding far back.
-AV1_KEYFRAME_SECONDS = 2.0
+#: A keyframe every this many seconds, so that the viewer can seek without decoding far back
+#: (a keyframe takes 3-4 frames' bytes; at most 100 frames to decode when seeking at 25 frames/s).
+AV1_KEYFRAME_SECONDS = 4.0
 #: SVT-AV1 refuses frames narrower or lower than this.
 AV1_MIN_SIDE = 64
 

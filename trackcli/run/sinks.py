@@ -31,6 +31,13 @@ GATE_RGB = (255, 210, 0)
 FEATURE_RGB = (0, 200, 255)
 SMOOTHED_RGB = (255, 0, 255)
 OUTLINE_RGB = (60, 255, 60)
+#: How far (pixels) a curve drawn in a recording may stray from the one computed: the estimate
+#: and the smoothed curve (dense polygons of a spline, drawn 2 px wide) are stored by the few
+#: points that keep them within this, a fifth of the points or fewer (Douglas-Peucker).
+CURVE_TOLERANCE = 0.75
+#: The same for the refined outline, which is traced along pixels: its steps of a pixel are
+#: the raster, not the shape; within 1.5 px it keeps a quarter of its points.
+OUTLINE_TOLERANCE = 1.5
 
 
 class Sink:
@@ -291,7 +298,8 @@ class RecordingSink(Sink):
         for s in results:
             self.smoothed_centroids.append((s.index, s.time, float(s.centroid[0]), float(s.centroid[1])))
             self.rec.set_frame(s.index, s.time)
-            self.rec.log_contour("video/smoothed", s.contour, color=SMOOTHED_RGB, width=2.0)
+            self.rec.log_contour("video/smoothed", s.contour, color=SMOOTHED_RGB, width=2.0,
+                                 tolerance=CURVE_TOLERANCE)
 
     def smoothed_series(self) -> None:
         """The smoothed centroids as a plot, ``series/centroid_smoothed``."""
@@ -320,9 +328,9 @@ def _record_frame(rec: Any, log_frame: Any, frame: Any, r: Any) -> None:
         rec.log_segments("video/gates", d["gate_inner"], d["gate_outer"], color=GATE_RGB)
     if "features" in d and len(d["features"]):
         rec.log_points("video/features", d["features"], colors=FEATURE_RGB, radii=2.0)
-    rec.log_contour("video/estimate", r.contour, color=ESTIMATE_RGB, width=2.0)
+    rec.log_contour("video/estimate", r.contour, color=ESTIMATE_RGB, width=2.0, tolerance=CURVE_TOLERANCE)
     if getattr(r, "outline", None) is not None:
-        rec.log_contour("video/outline", r.outline, color=OUTLINE_RGB, width=2.0)
+        rec.log_contour("video/outline", r.outline, color=OUTLINE_RGB, width=2.0, tolerance=OUTLINE_TOLERANCE)
     rec.log_points("video/centroid", r.centroid[None], colors=ESTIMATE_RGB, radii=3.0)
     if "histogram" in d:
         rec.log_histogram("histogram/tx", d["histogram"], d["hist_edges"])
@@ -332,7 +340,7 @@ def _record_frame(rec: Any, log_frame: Any, frame: Any, r: Any) -> None:
         elif kind == "segments":
             rec.log_segments(path, data[0], data[1], color=color)
         elif kind == "contour":
-            rec.log_contour(path, data, color=color, width=2.0)
+            rec.log_contour(path, data, color=color, width=2.0, tolerance=CURVE_TOLERANCE)
         else:
             raise DataError(f"display overlay {path}: unknown kind {kind!r} (points, segments or contour)")
 

@@ -39,6 +39,9 @@ REACQUIRE_NEAR = 2.0
 REACQUIRE_PACE = 2.0
 #: held frames whose centroids give the object's recent speed
 RECENT_HELD = 25
+#: Points on each particle contour drawn in the recording (equally spaced in the spline parameter;
+#: thin lines, many of them: a coarse polygon looks the same and takes a half of the space).
+PARTICLE_POINTS = 12
 
 
 class LastHeld:
@@ -233,6 +236,8 @@ class CondensationTracker(Tracker):
         super().__init__(space, dynamics, settings, rng, X0=X0)
         c = settings.condensation
         self.sampler = measurement_sampler(space, settings.measurement.n_normals)
+        # the particle contours of the recording are drawn thin and many: a few points each
+        self.display_sampler = measurement_sampler(space, min(settings.measurement.n_normals, PARTICLE_POINTS))
         self.schedule = cond.sample_size_schedule(c.initial_particles, c.particles, c.schedule_frames)
         n0 = self.schedule(0)
         if c.init == "template":
@@ -369,7 +374,7 @@ class CondensationTracker(Tracker):
         display: dict[str, Any] = {"histogram": hist, "hist_edges": self.edges}
         if c.display_particles:
             top = np.argsort(w)[::-1][: c.display_particles]
-            display["particle_contours"] = space.points(particles.cur[top], self.sampler)
+            display["particle_contours"] = space.points(particles.cur[top], self.display_sampler)
             display["particle_weights"] = w[top] / max(float(w.max()), 1e-300)
         # for offline consumers (trackcli.trackers.smoothing): each sample's X_{k-1} as its
         # parent had it, before a jump or a re-acquisition moved it

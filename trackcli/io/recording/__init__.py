@@ -41,7 +41,7 @@ native Rerun viewer (0.41) decodes only AV1 video by itself; H.264 and H.265 nee
 (>= 5.1) on the viewer's PATH, and VP9 plays only in the web viewer (Rerun docs, "Video",
 codec support table).  So by default (``auto``) the frames are encoded as AV1 while they are
 recorded (:class:`~trackcli.io.recording.frames.VideoStreamLogger`, a ``VideoStream``: one
-sample per frame at the frame's time, about 7.5 KB a frame at 854x480, against 40-120 KB as
+sample per frame at the frame's time, about 5-6 KB a frame at 854x480, against 40-120 KB as
 JPEG), an AV1 MP4 recorded whole is embedded as it is (``AssetVideo``), and JPEG frames
 (``EncodedImage``, which every viewer shows) are the fallback when PyAV or its AV1 encoder is
 missing or the frames are smaller than the encoder takes; JPEG frames at the source (a folder

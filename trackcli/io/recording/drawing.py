@@ -36,6 +36,18 @@ def _drop_collinear(pts: np.ndarray, closed: bool) -> np.ndarray:
     return pts[~between]
 
 
+def _simplify(pts: np.ndarray, tolerance: float, closed: bool) -> np.ndarray:
+    """``pts`` (M, 2) with the fewest points whose polyline stays within ``tolerance`` pixels of
+    every given point (Douglas-Peucker); the points kept are given points, in their order."""
+    if tolerance <= 0 or len(pts) < 4 or not np.all(np.isfinite(pts)):
+        return pts
+    import cv2
+
+    kept = cv2.approxPolyDP(np.ascontiguousarray(pts, dtype=np.float32).reshape(-1, 1, 2), float(tolerance),
+                            bool(closed)).reshape(-1, 2)
+    return kept if len(kept) >= (3 if closed else 2) else pts
+
+
 class Overlays:
     """The drawing methods of :class:`~trackcli.io.recording.Recording` (see the module docstring)."""
 
@@ -46,7 +58,7 @@ class Overlays:
     # -- 2-D overlays --------------------------------------------------------
 
     def log_contour(self, entity: str, points: np.ndarray, color: Sequence[int] = (255, 64, 0),
-                    width: float = 2.0, *, closed: bool = True) -> None:
+                    width: float = 2.0, *, closed: bool = True, tolerance: float = 0.0) -> None:
         """Draw one curve through ``points``.
 
         Parameters
@@ -57,12 +69,16 @@ class Overlays:
             Line width in image pixels.
         closed : bool
             Join the last point back to the first.
+        tolerance : float
+            With a positive value, the curve is stored by as few of its points as keep the
+            line within ``tolerance`` pixels of every point given (Douglas-Peucker): a dense
+            curve drawn a few pixels wide looks the same in a fraction of the space.
 
         Points that lie on the straight segment between their neighbours are left out: the
         line drawn is the same, and a pixel-traced outline (its straight runs of pixels) takes
         half the space.
         """
-        pts = _drop_collinear(_points(points, "points", leading=1), closed)
+        pts = _simplify(_drop_collinear(_points(points, "points", leading=1), closed), tolerance, closed)
         if closed and len(pts) > 1:
             pts = np.concatenate([pts, pts[:1]])
         self._emit(entity, "LineStrips2D", strips=pts[None], colors=_color(color)[None],
