@@ -248,6 +248,13 @@ class OutlineSettings:
     prior_width: float = _f(0.5, "float", "how far (in object sizes) the refined outline may leave the prior before the prior's "
                             "log-odds fall by 1", lo=0.01, hi=5)
     flow: bool = _f(True, "bool", "add the last refined outline moved by the dense optical flow (DIS) as a second prior")
+    colour_rate: float = _f(0.05, "float", "share of the way the refinement's colour model moves toward a frame's region when "
+                            "the frame is held with confidence (tracker's confidence >= 0.7, region and estimate agreeing "
+                            "IoU >= 0.6); 0: the first frame's colours throughout", lo=0, hi=1)
+    lost_contrast: float = _f(3.0, "float", "a frame the tracker reports lost is reported held when the inside of its refined "
+                              "outline stands out from a band about it by at least this in the first frame's colours (mean "
+                              "colour log-ratio inside less outside; held frames score 4-5); 0: the tracker's verdict as it is",
+                              lo=0, hi=8)
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,8 @@ Columns, in order:
     log-likelihood of the estimated contour under CONDENSATION's observation model (empty for Kalman);
 ``lost``
     1 when the tracker judges it has lost lock (its confidence is below
-    ``measurement.lost_below``), else 0;
+    ``measurement.lost_below``) and the refined outline does not vouch for the frame (its
+    inside standing out in the object's colours, ``outline.lost_contrast``), else 0;
 ``confidence``
     the tracker's confidence in [0, 1] that the estimate is on the object, from the evidence
     per normal of the estimated curve against background (:mod:`trackcli.observe.discriminant`) and the

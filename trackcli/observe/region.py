@@ -24,6 +24,7 @@ weigh the tracker's hypotheses are the observation model's (:mod:`trackcli.obser
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -33,6 +34,7 @@ import numpy as np
 BINS = 16
 #: limit of the colour log-ratio, so that one bin cannot outvote the prior by itself
 L_MAX = 4.0
+
 
 
 def _bin_index(image_bgr: np.ndarray) -> np.ndarray:
@@ -56,8 +58,7 @@ class ColourModel:
         idx = _bin_index(image_bgr)
         size = math.sqrt(max(np.count_nonzero(m), 1))
         r = max(3, int(round(band * size)))
-        ring = cv2.dilate(m.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
-        ring = ring.astype(bool) & ~m
+        ring = grow(m, r) & ~m
         return cls(_hist(idx[m]), _hist(idx[ring]))
 
     def log_ratio(self, image_bgr: np.ndarray) -> np.ndarray:
@@ -71,9 +72,44 @@ class ColourModel:
         self.bg = (1 - rate) * self.bg + rate * other.bg
 
 
+def grow(mask: np.ndarray, r: float) -> np.ndarray:
+    """``mask`` grown by ``r`` px (the pixels within ``r`` of it, Euclidean), bool: a dilation by a
+    disc, whose time does not grow with the disc as a structuring element's does."""
+    import cv2
+
+    m = np.asarray(mask).astype(bool)
+    return cv2.distanceTransform((~m).astype(np.uint8), cv2.DIST_L2, 3) <= r
+
+
 def _hist(idx: np.ndarray) -> np.ndarray:
     h = np.bincount(idx.ravel(), minlength=BINS ** 3).astype(np.float64)
     return h / max(h.sum(), 1.0)
+
+
+def mask_polygons(mask: np.ndarray, least: int = 9) -> list[np.ndarray]:
+    """A binary mask as polygons ``(P, 2)`` of boundary pixels' centres (vertices on straight runs
+    left out): the outer boundary of each piece of at least ``least`` px, largest first, then the
+    boundaries of the holes in them of as many px; :func:`region_fill` fills them back."""
+    import cv2
+
+    m = (np.asarray(mask) > 0).astype(np.uint8)
+    contours, hierarchy = cv2.findContours(m, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_SIMPLE)
+    if not contours:
+        return []
+    outer = [c for c, h in zip(contours, hierarchy[0]) if h[3] < 0 and len(c) >= 3 and cv2.contourArea(c) >= least]
+    holes = [c for c, h in zip(contours, hierarchy[0]) if h[3] >= 0 and len(c) >= 3 and cv2.contourArea(c) >= least]
+    outer.sort(key=cv2.contourArea, reverse=True)
+    holes.sort(key=cv2.contourArea, reverse=True)
+    return [c[:, 0, :].astype(float) for c in outer + holes] if outer else []
+
+
+def region_fill(pieces, shape: tuple[int, int]) -> np.ndarray:
+    """The polygons ``pieces`` (of :func:`mask_polygons`) filled on an image of ``shape``, bool: a
+    pixel is the region's when it is inside an odd number of them (a hole's boundary inside a piece's)."""
+    m = np.zeros(shape, bool)
+    for piece in pieces:
+        m ^= polygon_fill(piece, shape).astype(bool)
+    return m
 
 
 def polygon_fill(points: np.ndarray, shape: tuple[int, int], offset=(0, 0)) -> np.ndarray:
@@ -92,18 +128,28 @@ class RegionFit:
     origin: tuple[int, int]    # (x0, y0) of the ROI in the frame
     outline: np.ndarray | None  # (P, 2) frame coordinates, None when the estimate stands
     agreement: float           # IoU of the region with the estimate's fill
+    contrast: float = math.nan  # how the outline's inside stands out in the object's colours (:func:`contrast`)
+    scale: float = 1.0         # the ROI's pixels per frame pixel (refine's work_size)
+    pieces: tuple = ()         # the outer boundaries of the region's pieces, frame coordinates, largest first
 
 
 def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, sigma: float = 0.25,
-           margin: float = 0.5, smooth: float = 1.5, others: tuple = ()) -> RegionFit:
+           margin: float = 0.5, smooth: float = 1.5, others: tuple = (), work_size: float = math.inf) -> RegionFit:
     """The region the colour posterior and the estimate's prior agree on (module docstring).
 
-    ``others``: more priors ``(outline, weight)``, their log-odds added to the estimate's."""
+    ``others``: more priors ``(pieces, weight)``, ``pieces`` a polygon ``(P, 2)`` or a list of
+    them (a region in pieces), their log-odds added to the estimate's.  The region's connected
+    parts kept are those that overlap the estimate; the outline joins them (:func:`joined_outline`:
+    a person's legs that a shadow or a pole cuts off are the person's).
+    ``work_size``: an object larger than this (px, the square root of its priors' box) is
+    refined on the image shrunk to this size (the region's mask is then of the shrunk image,
+    ``RegionFit.scale`` the factor; the outline is in the frame's pixels)."""
     import cv2
 
     h, w = image_bgr.shape[:2]
     est = np.asarray(estimate, dtype=float)
-    allp = np.vstack([est] + [np.asarray(o, dtype=float) for o, _ in others])
+    others = [([o] if isinstance(o, np.ndarray) and o.ndim == 2 else list(o), wt) for o, wt in others]
+    allp = np.vstack([est] + [np.asarray(p, dtype=float) for o, _ in others for p in o])
     lo, hi = allp.min(axis=0), allp.max(axis=0)
     size = math.sqrt(max((hi - lo).prod(), 1.0))
     pad = margin * size + 4
@@ -112,20 +158,33 @@ def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, s
     if x1 - x0 < 4 or y1 - y0 < 4:
         return RegionFit(np.zeros((0, 0), bool), (x0, y0), None, 0.0)
     roi = image_bgr[y0:y1, x0:x1]
-    inside = polygon_fill(est, (y1 - y0, x1 - x0), (x0, y0))
+    f = min(1.0, work_size / size)
+    if f < 1.0:
+        roi = cv2.resize(roi, (max(4, round((x1 - x0) * f)), max(4, round((y1 - y0) * f))), interpolation=cv2.INTER_AREA)
+        f = roi.shape[1] / (x1 - x0)
+
+    def shrink(p: np.ndarray) -> np.ndarray:  # frame pixels -> the ROI's (pixel centres kept)
+        return (np.asarray(p, dtype=float) - (x0, y0) + 0.5) * f - 0.5
+
+    def grow_back(p: np.ndarray) -> np.ndarray:  # the ROI's pixels -> the frame's
+        return (np.asarray(p, dtype=float) + 0.5) / f - 0.5 + (x0, y0)
+
+    inside = polygon_fill(shrink(est), roi.shape[:2])
     area = float(np.count_nonzero(inside))
     if area < 9:
-        return RegionFit(inside.astype(bool), (x0, y0), None, 0.0)
+        return RegionFit(inside.astype(bool), (x0, y0), None, 0.0, scale=f)
     obj = math.sqrt(area)
     d_out = cv2.distanceTransform(1 - inside, cv2.DIST_L2, 3)
     d_in = cv2.distanceTransform(inside, cv2.DIST_L2, 3)
     signed = d_out - d_in
     L = model.log_ratio(roi)
     if smooth > 0:
-        L = cv2.GaussianBlur(L, (0, 0), smooth)
+        L = cv2.GaussianBlur(L, (0, 0), max(0.5, smooth * f))
     post = L - signed / (sigma * obj)
     for o, wt in others:
-        ins = polygon_fill(o, inside.shape, (x0, y0))
+        ins = np.zeros(inside.shape, np.uint8)
+        for piece in o:
+            ins |= polygon_fill(shrink(piece), inside.shape)
         sd = cv2.distanceTransform(1 - ins, cv2.DIST_L2, 3) - cv2.distanceTransform(ins, cv2.DIST_L2, 3)
         post = post - wt * sd / (sigma * obj)
     region = (post > 0).astype(np.uint8)
@@ -136,13 +195,113 @@ def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, s
         keep[1:] = overlap[1:] > 0.02 * area
     region = keep[lab]
     if not region.any():
-        return RegionFit(region, (x0, y0), None, 0.0)
-    u = region.astype(np.uint8)
-    contours, _ = cv2.findContours(u, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    c = max(contours, key=cv2.contourArea)[:, 0, :].astype(float) + (x0, y0)
+        return RegionFit(region, (x0, y0), None, 0.0, scale=f)
+    pieces = outer_pieces(region, least=max(9.0, PIECE_LEAST * area))
+    if not pieces:
+        return RegionFit(region, (x0, y0), None, 0.0, scale=f)
+    c = grow_back(joined_outline(pieces))
     inter = np.count_nonzero(region & inside.astype(bool))
     agree = inter / max(np.count_nonzero(region | inside.astype(bool)), 1)
-    return RegionFit(region, (x0, y0), c, float(agree))
+    return RegionFit(region, (x0, y0), c, float(agree), scale=f, pieces=tuple(grow_back(p) for p in pieces))
+
+
+#: the least area of a piece of the region (a share of the estimate's) that the outline takes in
+PIECE_LEAST = 0.02
+
+
+def outer_pieces(mask: np.ndarray, least: float = 9.0) -> list[np.ndarray]:
+    """The outer boundaries of a mask's pieces of at least ``least`` px, largest first (every
+    boundary pixel, as :func:`cv2.findContours` gives them; holes left out)."""
+    import cv2
+
+    contours, _ = cv2.findContours(np.asarray(mask).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    pieces = [c for c in contours if len(c) >= 3 and cv2.contourArea(c) >= least]
+    pieces.sort(key=cv2.contourArea, reverse=True)
+    return [c[:, 0, :].astype(float) for c in pieces]
+
+
+def joined_outline(pieces: list[np.ndarray]) -> np.ndarray:
+    """One closed polygon around several pieces (polygons), joined by the shortest bridges
+    between them (a minimum spanning tree of their nearest points), each crossed there and back:
+    its fill is the pieces' (and the bridges' lines).  One piece: itself."""
+    if len(pieces) == 1:
+        return pieces[0]
+    k = len(pieces)
+    sub = [p[:: max(1, len(p) // 200)] for p in pieces]  # nearest points, on at most 200 of each
+    dist = np.full((k, k), np.inf)
+    near: dict[tuple[int, int], tuple[int, int]] = {}
+    for a in range(k):
+        for b in range(a + 1, k):
+            d = np.hypot(*(sub[a][:, None, :] - sub[b][None, :, :]).transpose(2, 0, 1))
+            i, j = np.unravel_index(int(np.argmin(d)), d.shape)
+            dist[a, b] = dist[b, a] = d[i, j]
+            near[(a, b)] = (int(i) * max(1, len(pieces[a]) // 200), int(j) * max(1, len(pieces[b]) // 200))
+            near[(b, a)] = near[(a, b)][::-1]
+    # Prim's tree from the largest piece; then a walk around the tree: each piece's boundary
+    # from where it is entered, with its children's walks spliced in at their bridges
+    tree: dict[int, list[int]] = {a: [] for a in range(k)}
+    inside, best, parent = {0}, dist[0].copy(), np.zeros(k, int)
+    while len(inside) < k:
+        b = min((i for i in range(k) if i not in inside), key=lambda i: best[i])
+        inside.add(b)
+        tree[int(parent[b])].append(b)
+        for i in range(k):
+            if i not in inside and dist[b, i] < best[i]:
+                best[i], parent[i] = dist[b, i], b
+
+    def walk(a: int, start: int) -> list[np.ndarray]:
+        p = pieces[a]
+        at: dict[int, list[int]] = {}
+        for c in tree[a]:
+            at.setdefault(near[(a, c)][0], []).append(c)
+        out = []
+        for step in range(len(p)):
+            i = (start + step) % len(p)
+            out.append(p[i])
+            for c in at.get(i, ()):
+                out.extend(walk(c, near[(a, c)][1]))
+                out.append(p[i])
+        return out
+
+    return np.asarray(walk(0, 0))
+
+
+#: the band about a region whose colours :func:`contrast` compares with its inside, in object sizes
+CONTRAST_BAND = 0.25
+
+
+def contrast(image_bgr: np.ndarray, outline: np.ndarray, model: ColourModel) -> float:
+    """How the inside of ``outline`` stands out from its surroundings in ``model``'s colours: the
+    mean colour log-ratio ``L_c`` inside less its mean in a band :data:`CONTRAST_BAND` x the
+    region's size wide about it (NaN for an outline of no area).  An outline on the object is a
+    blob of its colours in others (4-5 on held frames of the DAVIS train sequences); one on the
+    background, or on part of the object and part of the background, stands out less."""
+    import cv2
+
+    h, w = image_bgr.shape[:2]
+    p = np.asarray(outline, dtype=float)
+    if len(p) < 3 or not np.all(np.isfinite(p)):
+        return math.nan
+    x, y = p[:, 0], p[:, 1]
+    if abs(float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))) < 2.0:  # no area
+        return math.nan
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    r = max(2, int(round(CONTRAST_BAND * math.sqrt(max(float(np.prod(hi - lo)), 1.0)))))
+    x0, y0 = int(max(0, math.floor(lo[0]) - r - 1)), int(max(0, math.floor(lo[1]) - r - 1))
+    x1, y1 = int(min(w, math.ceil(hi[0]) + r + 2)), int(min(h, math.ceil(hi[1]) + r + 2))
+    if x1 - x0 < 2 or y1 - y0 < 2:
+        return math.nan
+    inside = polygon_fill(p, (y1 - y0, x1 - x0), (x0, y0))
+    n_in = np.count_nonzero(inside)
+    if n_in == 0:
+        return math.nan
+    r = max(2, int(round(CONTRAST_BAND * math.sqrt(n_in))))
+    inside = inside.astype(bool)
+    band = grow(inside, r) & ~inside
+    if not band.any():
+        return math.nan
+    L = model.log_ratio(image_bgr[y0:y1, x0:x1])
+    return float(L[inside].mean() - L[band].mean())
 
 
 #: the frames' scale for the optical flow (DIS at half resolution: 1.6 ms a frame of 854x480)
@@ -198,21 +357,114 @@ def resample_closed(points: np.ndarray, n: int) -> np.ndarray:
     return np.column_stack([np.interp(u, t, q[:, 0]), np.interp(u, t, q[:, 1])])
 
 
+#: the share of a template's region that must lie in the first estimate's fill (grown by a
+#: tenth of the object's size) for the region to start the refinement
+START_INSIDE = 0.5
+
+
+def simplify_closed(points: np.ndarray, n: int) -> np.ndarray:
+    """``n`` vertices of a closed polygon that keep its shape: the corners Douglas-Peucker keeps
+    (the largest set of at most ``n``), then points added along the longest edges; clockwise on
+    screen from its top, as :func:`resample_closed`.  Equal spacing along a boundary that follows
+    single pixels spends its points on their steps and cuts the corners."""
+    import cv2
+
+    p = np.asarray(points, dtype=float)
+    if len(p) <= 3 or n < 3:
+        return resample_closed(p, n)
+    c = p.astype(np.float32).reshape(-1, 1, 2)
+    lo, hi = 0.0, float(np.ptp(p, axis=0).max()) + 1.0
+    best = None
+    for _ in range(20):  # the smallest tolerance that keeps at most n vertices
+        eps = 0.5 * (lo + hi)
+        v = cv2.approxPolyDP(c, eps, True)[:, 0, :].astype(float)
+        if len(v) <= n:
+            best, hi = v, eps
+        else:
+            lo = eps
+        if hi - lo < 0.05:
+            break
+    if best is None or len(best) < 3:
+        return resample_closed(p, n)
+    x, y = best[:, 0], best[:, 1]
+    if float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)) < 0:
+        best = best[::-1]
+    best = np.roll(best, -int(np.argmin(best[:, 1])), axis=0)
+    # the points still to place go along the longest edges, each edge cut into equal parts
+    nxt = np.roll(best, -1, axis=0)
+    length = np.hypot(*(nxt - best).T)
+    parts = np.ones(len(best), int)
+    for _ in range(n - len(best)):
+        parts[int(np.argmax(length / parts))] += 1
+    out = [best[k] + (nxt[k] - best[k]) * (j / parts[k]) for k in range(len(best)) for j in range(parts[k])]
+    return np.asarray(out)
+
+
+#: a frame's region updates the colour model only when the tracker's confidence is at least
+#: this and the region agrees with the estimate (IoU) at least :data:`UPDATE_AGREEMENT`
+UPDATE_CONFIDENCE = 0.7
+UPDATE_AGREEMENT = 0.6
+#: objects larger than this (px, the square root of the area of their priors' box) are refined
+#: on the frame shrunk to it: the time of a frame no longer grows with the object's size
+WORK_SIZE = 160.0
+
+
 class OutlineRefiner:
     """The outline of every frame fitted again from the tracker's estimate (module docstring).
 
-    The first frame's estimate (the template) teaches the colour model, learned again from
-    the refined first-frame region; each later frame's prior is the estimate and, with
-    ``flow``, the last refined outline moved by the optical flow, their log-odds added.
+    The first frame teaches the colour model: from ``start``, the region the template was
+    fitted to (:attr:`trackcli.shapes.template.Template.region`, polygons in the first frame's
+    pixels), when it lies where the first estimate is; else from the estimate's fill, learned
+    again from the region it refines to.  With ``start`` the first frame's outline is the
+    region's (its pieces joined, :func:`joined_outline`).  Each later frame's prior is the
+    estimate and, with ``flow``, the last refined region's pieces moved by the optical flow,
+    their log-odds added.
+
+    The colours follow the object's (light, turning) slowly: a frame held with confidence (the
+    tracker's at least :data:`UPDATE_CONFIDENCE`, the region agreeing with the estimate at least
+    :data:`UPDATE_AGREEMENT`) moves the model ``settings.colour_rate`` of the way toward its own
+    region's colours.  The first frame's model stays as the reference :func:`contrast` is
+    measured with, which a drifting model cannot move: the evidence of :meth:`holds`.
     """
 
-    def __init__(self, settings) -> None:
+    def __init__(self, settings, start=None) -> None:
         self.settings = settings
         self.model: ColourModel | None = None
+        self.reference: ColourModel | None = None
         self.flow = FlowPrior() if settings.flow else None
         self.last: np.ndarray | None = None
+        self.start = None if not start else [np.asarray(p, dtype=float) for p in start]
 
-    def __call__(self, image_bgr: np.ndarray, estimate: np.ndarray) -> RegionFit | None:
+    def _begin(self, image: np.ndarray, est: np.ndarray) -> RegionFit | None:
+        """The first frame from the template's region, or None when there is none where the estimate is."""
+        import cv2
+
+        if self.start is None:
+            return None
+        shape = image.shape[:2]
+        region = region_fill(self.start, shape)
+        inside = polygon_fill(est, shape)
+        area = np.count_nonzero(region)
+        if area < 9 or not inside.any():
+            return None
+        r = max(1, int(round(0.1 * math.sqrt(np.count_nonzero(inside)))))
+        grown = grow(inside, r)
+        if np.count_nonzero(region & grown) < START_INSIDE * area:
+            return None
+        self.model = ColourModel.learn(image, region)
+        inside = inside.astype(bool)
+        agree = np.count_nonzero(region & inside) / max(np.count_nonzero(region | inside), 1)
+        # every boundary pixel, so that the optical flow moves every part of the boundary
+        pieces = outer_pieces(region, least=max(9.0, PIECE_LEAST * area))
+        if not pieces:
+            return None
+        return RegionFit(region, (0, 0), joined_outline(pieces), float(agree), pieces=tuple(pieces))
+
+    def __call__(self, image_bgr: np.ndarray, estimate: np.ndarray, confidence: float = math.nan) -> RegionFit | None:
+        """The refined outline of the frame ``image_bgr`` whose estimate is the closed polygon
+        ``estimate`` (P, 2), held with the tracker's ``confidence`` (NaN: unknown, no update)."""
+        import cv2
+
         s = self.settings
         image = image_bgr if image_bgr.ndim == 3 else np.repeat(image_bgr[..., None], 3, axis=2)
         if self.flow is not None:
@@ -221,6 +473,11 @@ class OutlineRefiner:
         if not np.all(np.isfinite(est)) or len(est) < 3:
             return None
         if self.model is None:
+            fit = self._begin(image, est)
+            if fit is not None:
+                self.reference = ColourModel(self.model.fg.copy(), self.model.bg.copy())
+                self.last = list(fit.pieces)
+                return dataclasses.replace(fit, contrast=contrast(image, fit.outline, self.reference))
             m = polygon_fill(est, image.shape[:2]).astype(bool)
             if not m.any():
                 return None
@@ -230,19 +487,38 @@ class OutlineRefiner:
                 m2 = polygon_fill(fit.outline, image.shape[:2]).astype(bool)
                 if m2.any():
                     self.model = ColourModel.learn(image, m2)
+            self.reference = ColourModel(self.model.fg.copy(), self.model.bg.copy())
         others = ()
         if self.flow is not None and self.last is not None:
-            moved = self.flow.move(self.last)
-            if moved is not None:
+            moved = [self.flow.move(p) for p in self.last]
+            if all(m is not None for m in moved):
                 others = ((moved, 1.0),)
-        fit = refine(image, est, self.model, sigma=s.prior_width, others=others)
-        self.last = fit.outline if fit.outline is not None else est
-        return fit
+        fit = refine(image, est, self.model, sigma=s.prior_width, others=others, work_size=WORK_SIZE)
+        self.last = list(fit.pieces) if fit.outline is not None else [est]
+        if fit.outline is None:
+            return fit
+        if (s.colour_rate > 0 and confidence >= UPDATE_CONFIDENCE and fit.agreement >= UPDATE_AGREEMENT):
+            x0, y0 = fit.origin
+            h, w = fit.mask.shape
+            x1, y1 = x0 + int(round(w / fit.scale)), y0 + int(round(h / fit.scale))
+            roi = image[y0:y1, x0:x1]
+            if roi.shape[:2] != (h, w):
+                roi = cv2.resize(roi, (w, h), interpolation=cv2.INTER_AREA)
+            self.model.blend(ColourModel.learn(roi, fit.mask), s.colour_rate)
+        return dataclasses.replace(fit, contrast=contrast(image, fit.outline, self.reference))
+
+    def holds(self, fit: RegionFit | None) -> bool:
+        """Whether a frame's refined region is evidence enough that the object is held whatever
+        the tracker's confidence: its inside stands out from its surroundings in the first
+        frame's colours by at least ``settings.lost_contrast`` (:func:`contrast`; 0: never)."""
+        t = self.settings.lost_contrast
+        return fit is not None and t > 0 and math.isfinite(fit.contrast) and fit.contrast >= t
 
 
-def outline_refiner(settings, space) -> OutlineRefiner | None:
+def outline_refiner(settings, space, start=None) -> OutlineRefiner | None:
     """The run's :class:`OutlineRefiner` (``outline.refine``), or None: refinement off, no
-    outline columns to draw (``output.outline_points`` 0), or an open curve."""
+    outline columns to draw (``output.outline_points`` 0), or an open curve.  ``start``: the
+    region the template was fitted to (:attr:`trackcli.shapes.template.Template.region`)."""
     if settings.outline.refine and settings.output.outline_points and space.basis.closed:
-        return OutlineRefiner(settings.outline)
+        return OutlineRefiner(settings.outline, start=start)
     return None

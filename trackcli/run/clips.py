@@ -534,6 +534,7 @@ def track_clip(
     """
     from trackcli.io.video import open_video
     from trackcli.observe.region import outline_refiner
+    from trackcli.shapes.template import load_template
     from trackcli.trackers.base import run_tracker
 
     tracker_cls = tracker_class(tracker)
@@ -570,14 +571,13 @@ def track_clip(
         rng = np.random.default_rng(settings.seed)
         extra: dict[str, Any] = {}
         if tracker_cls.needs_template:  # e.g. a structure template's parts
-            from trackcli.shapes.template import load_template
-
             extra = {"template": load_template(template), "template_path": str(template)}
         the_tracker = tracker_cls(space, dynamics, settings, rng, X0=X0, **extra)
         the_tracker.label = name
 
-        # the drawn outline, refined from each frame's estimate after the step
-        refiner = outline_refiner(settings, space)
+        # the drawn outline, refined from each frame's estimate after the step; the region the
+        # template was fitted to starts it (its colours, its outline)
+        refiner = outline_refiner(settings, space, start=load_template(template).region if template else None)
 
         def make(frames: Iterable[Any]) -> Iterator[Any]:
             return run_tracker(the_tracker, frames, refiner=refiner)

@@ -371,10 +371,15 @@ def draw_template(clip: str, *, output: str, frame_index: int = 0, points: str |
             outline = masks.mask_outline(mask_image)
             source = f"box {box} ({seg.method}{note})"
         else:
-            outline = masks.object_outline(masks.load_mask(mask, size))
+            mask_image = masks.load_mask(mask, size)
+            outline = masks.object_outline(mask_image)
             source = f"mask {mask}"
         template = fit_outline(outline, n_ctrl, degree, size, closed=not open_curve, clip=str(clip),
                                frame=frame_index, source=source)
+        if box or mask:  # the region itself, which the spline only approximates (outline refinement)
+            from trackcli.observe.region import mask_polygons
+
+            template = dataclasses.replace(template, region=tuple(mask_polygons(mask_image)) or None)
         if box:
             template = dataclasses.replace(template, box=tuple(b))
         if parts:

@@ -14,7 +14,7 @@ import numpy as np
 
 from trackcli.errors import InputError
 from trackcli.io.tracks import outline_cells, outline_header
-from trackcli.observe.region import resample_closed
+from trackcli.observe.region import simplify_closed
 from trackcli.shapes.shape_space import ShapeSpace
 from trackcli.shapes.spline import dense_polygon
 
@@ -47,7 +47,7 @@ class OutlineColumns:
 
     def cells(self, X: np.ndarray, refined: np.ndarray | None = None) -> list[str]:
         """The row's outline cells: of ``X``'s curve, or of the ``refined`` outline when given
-        (resampled to ``n_points`` equally spaced points)."""
+        (``n_points`` of its vertices that keep its shape, :func:`trackcli.observe.region.simplify_closed`)."""
         if refined is not None and self.space.basis.closed:
-            return outline_cells(resample_closed(refined, self.n_points), True)
+            return outline_cells(simplify_closed(refined, self.n_points), True)
         return outline_cells(self.points(X), self.space.basis.closed)

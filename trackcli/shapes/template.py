@@ -14,9 +14,14 @@ A template file is YAML::
       - ...
     source: "box 180,60,120,200"    # how it was made
     box: [180.0, 60.0, 120.0, 200.0] # the box it was drawn from (x, y, w, h; only draw --box)
+    region:                         # the segmented region's boundaries: of each piece, largest
+      - [[183, 62], [184, 62], ...] #   first, then of the holes (only draw --box and --mask)
 
 The control points are in the image coordinates of the stated frame; the shape-space built
 on a template has ``Q0`` equal to these points, so ``X = 0`` is the object where it was drawn.
+The spline only approximates a segmented region (a mask, a box's segmentation); ``region``
+keeps the region itself, from which the outline refinement learns the object's colours and
+starts (:class:`trackcli.observe.region.OutlineRefiner`).
 """
 
 from __future__ import annotations
@@ -59,6 +64,11 @@ class Template:
         The box ``(x, y, w, h)`` the outline was segmented from (``draw --box``), as given:
         a track started at the template reports this box carried along by the estimate
         (:class:`trackcli.io.tracks.BoxCarry`).
+    region : tuple of ndarray of shape (P, 2), or None
+        The region the outline was fitted to (``draw --mask`` / ``--box``): the outer boundary
+        of each of its pieces, largest first, then the boundaries of its holes, in pixel centres
+        of the drawn frame (:func:`trackcli.observe.region.mask_polygons`; a pixel is the
+        region's when inside an odd number of them).
     """
 
     control_points: np.ndarray
@@ -69,6 +79,7 @@ class Template:
     frame_size: tuple[int, int] | None = None
     source: str = ""
     box: tuple[float, float, float, float] | None = None
+    region: tuple[np.ndarray, ...] | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -88,6 +99,14 @@ class Template:
             if b.size != 4 or not np.all(np.isfinite(b)) or b[2] <= 0 or b[3] <= 0:
                 raise TemplateError(f"box must be [x, y, width, height] with a positive width and height, got {self.box!r}")
             object.__setattr__(self, "box", tuple(float(v) for v in b))
+        if self.region is not None:
+            pieces = []
+            for k, piece in enumerate(self.region):
+                a = np.asarray(piece, dtype=float)
+                if a.ndim != 2 or a.shape[1] != 2 or len(a) < 3 or not np.all(np.isfinite(a)):
+                    raise TemplateError(f"region: piece {k} must be a list of at least three finite [x, y] pairs")
+                pieces.append(a)
+            object.__setattr__(self, "region", tuple(pieces) or None)
 
     @property
     def n_ctrl(self) -> int:
@@ -118,6 +137,8 @@ class Template:
         }
         if self.box is not None:
             d["box"] = [round(v, 4) for v in self.box]
+        if self.region is not None:
+            d["region"] = [[[_num(x), _num(y)] for x, y in piece] for piece in self.region]
         d.update(self.extra)
         return d
 
@@ -154,12 +175,28 @@ class Template:
             if not (isinstance(box, (list, tuple)) and len(box) == 4
                     and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in box)):
                 raise TemplateError(f"{where}: box must be [x, y, width, height] in pixels, got {box!r}")
-        known = {"format", "kind", "clip", "frame", "frame_size", "degree", "closed", "control_points", "source", "box"}
+        region = d.get("region")
+        if region is not None:
+            try:
+                if not isinstance(region, list):
+                    raise TypeError
+                region = tuple(np.asarray(piece, dtype=float) for piece in region)
+            except (TypeError, ValueError):
+                raise TemplateError(f"{where}: region must be a list of polygons, each a list of [x, y] number pairs") from None
+        known = {"format", "kind", "clip", "frame", "frame_size", "degree", "closed", "control_points", "source", "box",
+                 "region"}
         try:
             return cls(cp, degree=degree, closed=closed, clip=d.get("clip"), frame=frame, frame_size=size,
-                       source=str(d.get("source", "")), box=None if box is None else tuple(box), extra={k: v for k, v in d.items() if k not in known})
+                       source=str(d.get("source", "")), box=None if box is None else tuple(box), region=region,
+                       extra={k: v for k, v in d.items() if k not in known})
         except TemplateError as exc:
             raise TemplateError(f"{where}: {exc}") from None
+
+
+def _num(v: float) -> int | float:
+    """A coordinate as YAML writes it: an integer when it is one (a pixel centre), else 4 decimals."""
+    f = round(float(v), 4)
+    return int(f) if f.is_integer() else f
 
 
 def save_template(path: str | Path, template: Template) -> Path:

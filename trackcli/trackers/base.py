@@ -72,7 +72,8 @@ class FrameResult:
         for Kalman).
     lost : bool
         Tracker's own verdict that it has no lock: ``confidence`` below
-        ``measurement.lost_below``.
+        ``measurement.lost_below``, unless the refined outline's region vouches for the frame
+        (:func:`run_tracker`).
     confidence : float
         Confidence in [0, 1] that the estimate is on the object
         (:class:`trackcli.observe.presence.Presence`).
@@ -267,8 +268,10 @@ def run_tracker(tracker: Tracker, frames: Iterable[Any], measurement: Measuremen
     (:meth:`Tracker.prepare`); ``measurement``, when given, replaces the tracker's
     measurement settings for the feature image.  With ``refiner``
     (:class:`trackcli.observe.region.OutlineRefiner`), each result carries the outline refined
-    in the full image from its estimate: a stage after the tracker's step, which draws the
-    outline and changes nothing of the estimate or the weights.
+    in the full image from its estimate: a stage after the tracker's step, which changes nothing
+    of the estimate or the weights; a frame the tracker calls lost is reported held when the
+    refined region vouches for it (:meth:`~trackcli.observe.region.OutlineRefiner.holds`; the
+    tracker's own course, e.g. its re-acquisition, follows its own verdict).
     """
     import dataclasses
 
@@ -281,7 +284,8 @@ def run_tracker(tracker: Tracker, frames: Iterable[Any], measurement: Measuremen
             data = tracker.prepare(frame)
         r = tracker.step(data)
         if refiner is not None:
-            fit = refiner(data.image, r.contour)
+            fit = refiner(data.image, r.contour, r.confidence)
             if fit is not None and fit.outline is not None:
-                r = dataclasses.replace(r, outline=fit.outline, region_agreement=fit.agreement)
+                r = dataclasses.replace(r, outline=fit.outline, region_agreement=fit.agreement,
+                                        lost=r.lost and not refiner.holds(fit))
         yield r
