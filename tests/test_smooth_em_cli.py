@@ -62,7 +62,7 @@ def work(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def template(clip, work) -> Path:
     out = work / "head.yaml"
-    run(["draw", clip, "--box", BOX, "-o", out])
+    run(["draw", clip, "--box", BOX, "--n-ctrl", "12", "-o", out])  # the book's 12-point head
     return out
 
 
