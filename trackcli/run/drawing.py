@@ -2,9 +2,10 @@
 
 ``trackcli draw`` gets an ordered outline from :mod:`trackcli.shapes.draw` (points, an
 ellipse) or :mod:`trackcli.segment` (a mask, a box) and fits a B-spline to it here
-(:func:`fit_template`), falling back where the fit strays from the outline; the result is
-shown over its frame as a PNG (:func:`render_preview`) and, on request, a recording
-(:func:`record_template`).
+(:func:`fit_template`): without ``--n-ctrl`` with as many control points as the outline needs
+(:func:`fit_covering`), with ``--n-ctrl`` with that many, falling back where the fit strays
+from the outline.  The result is shown over its frame as a PNG (:func:`render_preview`) and,
+on request, a recording (:func:`record_template`).
 """
 
 from __future__ import annotations
@@ -59,15 +60,18 @@ def fit_template(outline: np.ndarray, n_ctrl: int, *, degree: int = 2, closed: b
     if len(outline) < n_ctrl:
         # too few points to pin every control point: resample the polygon densely first
         outline = resample_polygon(outline, max(4 * n_ctrl, 64), closed)
+
     def make(Q: np.ndarray, note: str = "") -> Template:
-        return Template(np.column_stack([Q[:n_ctrl], Q[n_ctrl:]]), degree=degree, closed=closed, clip=clip,
+        n = len(Q) // 2
+        return Template(np.column_stack([Q[:n], Q[n:]]), degree=degree, closed=closed, clip=clip,
                         frame=frame, frame_size=frame_size, source=source + note)
 
-    warn = log.warning if not _quiet else (lambda *args: None)  # a trial fit says nothing
+    # a trial fit (draw --box trying its masks) says nothing
+    warn = log.warning if not _quiet else (lambda *args: None)
     if closed and detail_ctrl is not None and detail_ctrl > n_ctrl:
         cover = fit_covering(outline, n_ctrl, detail_ctrl, degree=degree)
-        n_ctrl = cover.n_ctrl
-        (log.info if not _quiet else (lambda *args: None))("%s", cover.describe())
+        if not _quiet:
+            log.info("%s", cover.describe())
         if cover.iou < TARGET_IOU:
             warn("the curve covers the outline to IoU %.2f only (%d control points; up to %d tried)",
                  cover.iou, cover.n_ctrl, cover.tried[-1][0])
