@@ -38,6 +38,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import subprocess
 import sys
 import tempfile
@@ -80,9 +81,11 @@ def sequences(folder: Path) -> list[Sequence]:
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
-    exe = Path(sys.executable).with_name("trackcli")
-    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "trackcli.cli"]
-    return subprocess.run([*cmd, "-q", *args], capture_output=True, text=True, timeout=3600)
+    # the package this script imports (the checkout it sits in, or PYTHONPATH's), not whichever
+    # the environment's `trackcli` script was installed from
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+    return subprocess.run([sys.executable, "-m", "trackcli.cli", "-q", *args], capture_output=True, text=True,
+                          timeout=3600, env=env)
 
 
 def _last_line(r: subprocess.CompletedProcess) -> str:

@@ -220,3 +220,65 @@ def test_given_control_points_win_over_the_growth():
     outline = draw.canonical_start(masks.mask_outline(_hand()).astype(float))
     for n in (10, 12, 30):
         assert drawing.fit_template(outline, n).n_ctrl == n
+
+
+# ---------------------------------------------------------------------------------------------
+# the trackers with templates of many control points
+
+
+@pytest.mark.parametrize("tracker", ["kalman", "condensation", "mht"])
+def test_the_trackers_follow_a_template_of_sixty_four_control_points(tmp_path, ellipse_clip, tracker):
+    # the shape-spaces built on a template (translation, similarity, affine) have the same
+    # size whatever its control points; the curve's sampling and the outline grow with them
+    from conftest import CLIP_DRIFT, CLIP_ELLIPSE, CLIP_FRAMES
+    from trackcli.io.tracks import read_columns
+
+    runner = CliRunner()
+    cx, cy, a, b = CLIP_ELLIPSE
+    r = runner.invoke(cli, ["draw", str(ellipse_clip), "--ellipse", f"{cx},{cy},{a},{b}", "--n-ctrl", "64",
+                            "-o", str(tmp_path / "t.yaml")])
+    assert r.exit_code == 0, r.output
+    assert load_template(tmp_path / "t.yaml").n_ctrl == 64
+    r = runner.invoke(cli, ["track", str(ellipse_clip), "--template", str(tmp_path / "t.yaml"), "--tracker", tracker,
+                            "--no-rrd", "--seed", "0", "-o", str(tmp_path / "out")])
+    assert r.exit_code == 0, r.output
+    cols = read_columns(next((tmp_path / "out").glob("*.csv")), ["cx", "cy"])
+    true_x = cx + CLIP_DRIFT * np.arange(CLIP_FRAMES)
+    assert np.max(np.hypot(cols["cx"] - true_x, cols["cy"] - cy)) < 3.0
+
+
+# ---------------------------------------------------------------------------------------------
+# bench/davis.py --template-only
+
+
+def test_the_davis_bench_scores_frame_zero_templates_without_tracking(tmp_path):
+    # a DAVIS-layout folder of one sequence, an ellipse in two frames: the template is drawn
+    # from the first mask and scored against it; nothing is tracked
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    seq = tmp_path / "davis" / "ellipse"
+    (seq / "img").mkdir(parents=True)
+    (seq / "masks").mkdir()
+    for k in range(2):
+        m = np.zeros((120, 160), np.uint8)
+        cv2.ellipse(m, ((70 + 2 * k, 60), (56, 72), 0), 255, -1)
+        image = np.full((120, 160, 3), 200, np.uint8)
+        image[m > 0] = (40, 40, 40)
+        cv2.imwrite(str(seq / "img" / f"{k:05d}.jpg"), image)
+        cv2.imwrite(str(seq / "masks" / f"{k:05d}.png"), m)
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    out = tmp_path / "rows.json"
+    r = subprocess.run([sys.executable, str(root / "bench" / "davis.py"), str(tmp_path / "davis"), "--template-only",
+                        "--work", str(tmp_path / "work"), "--json", str(out)], capture_output=True, text=True, env=env,
+                       timeout=600)
+    assert r.returncode == 0, r.stderr
+    (row,) = json.loads(out.read_text())
+    assert row["name"] == "ellipse" and row["tmpl"] > 0.95 and row["n_ctrl"] == 12
+    assert "12 control points, IoU" in row["source"]
+    assert "ellipse" in r.stdout and "mean (1)" in r.stdout
+    assert not list((tmp_path / "work").glob("ellipse/*.csv"))  # nothing tracked

@@ -149,12 +149,12 @@ def join_pieces(mask: np.ndarray) -> Joined:
     order = 1 + np.argsort(-stats[1:, cv2.CC_STAT_AREA], kind="stable")
     out = Joined(labels == order[0], int(stats[order[0], cv2.CC_STAT_AREA]))
     waiting = list(order[1:])
-    progress = True
-    while progress and waiting:
-        progress = False
-        # distance of every pixel to the region, for each piece's gap
+    joined_one = True
+    while joined_one and waiting:
+        joined_one = False
+        # every pixel's distance to the region as it is now: each piece's gap
         away = cv2.distanceTransform((~out.region).astype(np.uint8), cv2.DIST_L2, 5)
-        for k in list(waiting):
+        for k in waiting:
             piece = labels == k
             area = int(stats[k, cv2.CC_STAT_AREA])
             gap = float(away[piece].min())
@@ -166,7 +166,8 @@ def join_pieces(mask: np.ndarray) -> Joined:
                 out.joined.append(area)
                 out.radius = max(out.radius, joint[1])
                 waiting.remove(k)
-                progress = True
+                joined_one = True
+                break  # the region grew: the gaps are measured again
     out.left_out = [int(stats[k, cv2.CC_STAT_AREA]) for k in waiting]
     return out
 
