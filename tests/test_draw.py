@@ -282,7 +282,7 @@ def test_box_segmentation_reports_each_grabcut_run_and_gives_the_same_mask(monke
 
 def test_box_without_an_object_falls_back_to_the_inscribed_ellipse(caplog):
     img = np.full((120, 160, 3), 128, np.uint8)
-    with caplog.at_level(logging.WARNING, logger="trackcli.shapes.draw"):
+    with caplog.at_level(logging.WARNING, logger="trackcli.segment.grabcut"):
         mask = grabcut.segment_box(img, (40.0, 30.0, 60.0, 50.0))
     assert "no clear object" in caplog.text
     inscribed = draw.polygon_mask(draw.ellipse_outline(70.0, 55.0, 30.0, 25.0), (160, 120))
@@ -298,7 +298,7 @@ def test_box_without_an_object_falls_back_to_the_inscribed_ellipse(caplog):
 
 def test_the_fallback_warning_names_the_box_as_given_when_it_reaches_the_frames_edge(caplog):
     img = np.full((120, 160, 3), 128, np.uint8)  # padded at the edge before segmenting
-    with caplog.at_level(logging.WARNING, logger="trackcli.shapes.draw"):
+    with caplog.at_level(logging.WARNING, logger="trackcli.segment.grabcut"):
         method = grabcut.segment_candidates(img, (-20.0, -20.0, 60.0, 60.0)).method
     assert method == "inscribed ellipse"
     assert "--box -20,-20,60,60: automatic segmentation found no clear object" in caplog.text
@@ -441,13 +441,13 @@ def test_a_box_reaching_far_beyond_the_frame_is_cut_a_quarter_of_its_size_beyond
     img, _ = dark_ellipse_image(np.random.default_rng(5))
     img = np.ascontiguousarray(img[40:160, 40:200])  # 160 x 120: the ellipse and some background
     h, w = img.shape[:2]
-    with caplog.at_level(logging.WARNING, logger="trackcli.shapes.draw"):
+    with caplog.at_level(logging.WARNING, logger="trackcli.segment.grabcut"):
         mask = grabcut.segment_box(img, (-10000.0, 0.0, 20000.0, 10000.0))
     assert f"beyond the {w}x{h} frame by more than a quarter" in caplog.text
     assert f"segmenting {-w / 4:g},0,{1.5 * w:g},{1.25 * h:g}" in caplog.text
     assert mask.shape == (h, w)
     caplog.clear()
-    with caplog.at_level(logging.WARNING, logger="trackcli.shapes.draw"):
+    with caplog.at_level(logging.WARNING, logger="trackcli.segment.grabcut"):
         cut = grabcut.segment_box(img, (-w / 4, 0.0, 1.5 * w, 1.25 * h))  # a quarter beyond: as given
     assert "a quarter" not in caplog.text
     np.testing.assert_array_equal(mask, cut)
