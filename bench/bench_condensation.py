@@ -61,7 +61,7 @@ import numpy as np  # noqa: E402
 from numba import njit, uintp  # noqa: E402
 
 from trackcli.trackers import condensation  # noqa: E402
-from trackcli.observe import discriminant, measure  # noqa: E402
+from trackcli.observe import appearance, discriminant, likelihoods, measure  # noqa: E402
 from trackcli.observe.kernels import _profile_inside  # noqa: E402
 
 WIDTH, HEIGHT = 640, 480
@@ -220,7 +220,7 @@ def discriminant_model(frames, fimgs, model):
     x0 = np.zeros((1, 6))
     x0[0, :2] = TRUTH[0] - (320, 240)
     pts0, nrm0 = (a[0] for a in model.evaluate(x0))
-    app = discriminant.learn_appearance(frames[0], fimgs[0], pts0, nrm0, pts0, h=15.0, sigma=3.0, threshold=8.0)
+    app = appearance.learn_appearance(frames[0], fimgs[0], pts0, nrm0, pts0, h=15.0, sigma=3.0, threshold=8.0)
     t0 = time.perf_counter()
     evs = [discriminant.evidence(app, f, g, TRUTH[k], 8.0) for k, (f, g) in enumerate(zip(frames, fimgs))]
     t_ev = 1e3 * (time.perf_counter() - t0) / len(frames)
@@ -235,7 +235,7 @@ def likelihood(score, fimgs, k: int, pts: np.ndarray, nrm: np.ndarray) -> np.nda
     """The log-likelihood of curves on frame ``k``: the discriminant's ``score``, or AC eq 12.2 without one."""
     if score is not None:
         return score(k, pts, nrm)
-    return measure.log_likelihood(fimgs[k], pts, nrm, h=15.0, sigma=3.0, alpha=0.02, threshold=8.0)
+    return likelihoods.log_likelihood(fimgs[k], pts, nrm, h=15.0, sigma=3.0, alpha=0.02, threshold=8.0)
 
 
 def run(n: int, frames, fimgs, model, dyn, n_frames: int, normals: int, seed: int, threads: int = 1,

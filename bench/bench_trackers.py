@@ -45,7 +45,8 @@ from types import SimpleNamespace  # noqa: E402
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from trackcli.shapes import draw  # noqa: E402
+from trackcli.run import drawing  # noqa: E402
+from trackcli.segment import grabcut, masks  # noqa: E402
 from trackcli.settings import load_settings  # noqa: E402
 from trackcli.sample_data import load_truth  # noqa: E402
 from trackcli.shapes.outline import build_space  # noqa: E402
@@ -79,9 +80,9 @@ def box_template(image: np.ndarray, truth):
     """The template ``draw --box`` makes from the true box of frame 0 grown by MARGIN."""
     x, y, w, h = truth.bbox_x[0], truth.bbox_y[0], truth.bbox_w[0], truth.bbox_h[0]
     box = (x - MARGIN * w, y - MARGIN * h, (1 + 2 * MARGIN) * w, (1 + 2 * MARGIN) * h)
-    outline = draw.mask_outline(draw.segment_box(image, box))
+    outline = masks.mask_outline(grabcut.segment_box(image, box))
     size = (image.shape[1], image.shape[0])
-    return draw.fit_template(outline, 12, frame_size=size, source="bench box")
+    return drawing.fit_template(outline, 12, frame_size=size, source="bench box")
 
 
 def scaled_template(template, factor: float, size: tuple[int, int]):

@@ -26,6 +26,11 @@ OpenCV's CSRT box (``csrt``, needs ``opencv-contrib-python-headless``).
 Usage::
 
     python bench/davis.py [FOLDER ...] [--only a,b] [--box] [--baseline] [--json OUT.json]
+    python bench/davis.py [FOLDER ...] --template-only [--box] [--draw-extra "--n-ctrl 12"]
+
+With ``--template-only`` only the frame-0 templates are drawn and scored (``tmpl``, the number
+of control points ``ctrl``, the draw's time in seconds and the fit's note from the template's
+``source``): cheap enough to run on every sequence of a dev set.
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import subprocess
 import sys
 import tempfile
@@ -75,9 +81,11 @@ def sequences(folder: Path) -> list[Sequence]:
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
-    exe = Path(sys.executable).with_name("trackcli")
-    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "trackcli.cli"]
-    return subprocess.run([*cmd, "-q", *args], capture_output=True, text=True, timeout=3600)
+    # the package this script imports (the checkout it sits in, or PYTHONPATH's), not whichever
+    # the environment's `trackcli` script was installed from
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+    return subprocess.run([sys.executable, "-m", "trackcli.cli", "-q", *args], capture_output=True, text=True,
+                          timeout=3600, env=env)
 
 
 def _last_line(r: subprocess.CompletedProcess) -> str:
@@ -111,21 +119,36 @@ def lost_truth(pred: list[np.ndarray], truth: list[np.ndarray], lost: np.ndarray
     return {"off": len(off), "flag_off": sum(off), "held": len(held), "flag_held": sum(held)}
 
 
-def run_sequence(seq: Sequence, work: Path, *, box: bool, extra: list[str]) -> dict:
-    from trackcli.io.tracks import read_columns, read_outlines
+def draw_template(seq: Sequence, work: Path, *, box: bool, draw_extra: list[str] = ()) -> dict:
+    """``draw`` on the sequence's first frame (its mask, or with ``box`` the mask's tight box):
+    the template's J against that mask (``tmpl``), its control points, how it was made."""
     from trackcli.shapes.spline import dense_polygon
     from trackcli.shapes.template import load_template
 
-    truth_files = mask_files(seq.masks)
-    truth = [read_mask(f) for f in truth_files]
-    shape = truth[0].shape
+    truth0 = read_mask(mask_files(seq.masks)[0])
     tmpl = work / f"{seq.name}.template.yaml"
-    how = ["--box", ",".join(f"{v:g}" for v in tight_box(truth[0]))] if box else ["--mask", str(truth_files[0])]
-    r = _cli("draw", str(seq.frames), *how, "-o", str(tmpl), "--preview", str(work / f"{seq.name}.template.png"))
+    how = ["--box", ",".join(f"{v:g}" for v in tight_box(truth0))] if box else ["--mask", str(mask_files(seq.masks)[0])]
+    t0 = time.perf_counter()
+    r = _cli("draw", str(seq.frames), *how, "-o", str(tmpl), "--preview", str(work / f"{seq.name}.template.png"),
+             *draw_extra)
+    wall = time.perf_counter() - t0
     if r.returncode:
         return {"name": seq.name, "error": "draw: " + _last_line(r)}
     t = load_template(tmpl)
-    tmpl_j = float(score_masks([outline_mask(dense_polygon(t.Q, t.basis(), 400), shape)], [truth[0]]).J[0])
+    tmpl_j = float(score_masks([outline_mask(dense_polygon(t.Q, t.basis(), 400), truth0.shape)], [truth0]).J[0])
+    return {"name": seq.name, "tmpl": tmpl_j, "n_ctrl": t.n_ctrl, "source": t.source, "draw_wall": wall,
+            "template": tmpl}
+
+
+def run_sequence(seq: Sequence, work: Path, *, box: bool, extra: list[str], draw_extra: list[str] = ()) -> dict:
+    from trackcli.io.tracks import read_columns, read_outlines
+
+    truth = [read_mask(f) for f in mask_files(seq.masks)]
+    shape = truth[0].shape
+    drawn = draw_template(seq, work, box=box, draw_extra=draw_extra)
+    if "error" in drawn:
+        return drawn
+    tmpl, tmpl_j = drawn["template"], drawn["tmpl"]
     out = work / seq.name
     t0 = time.perf_counter()
     r = _cli("track", "--template", str(tmpl), str(seq.frames), "-o", str(out), "--no-rrd", "--json", "--seed", "0",
@@ -140,7 +163,7 @@ def run_sequence(seq: Sequence, work: Path, *, box: bool, extra: list[str]) -> d
     n = min(len(frames), len(truth))
     pred = [outline_mask(outlines[i], shape) for i in range(n)]
     s = score_masks(pred, truth[:n], frames[:n])
-    res = {"name": seq.name, "frames": n, "J": s.J_mean, "F": s.F_mean, "tmpl": tmpl_j,
+    res = {"name": seq.name, "frames": n, "J": s.J_mean, "F": s.F_mean, "tmpl": tmpl_j, "n_ctrl": drawn["n_ctrl"],
            "lost": int(np.nansum(lost[:n])), "fps": summary.get("tracker_fps"), "wall": wall,
            "J_per_frame": [round(float(v), 4) for v in s.J]}
     res.update(lost_truth(pred, truth[:n], lost[:n]))
@@ -176,6 +199,29 @@ def _f(v, d=2) -> str:
     return "—" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.{d}f}"
 
 
+def template_table(seqs: list[Sequence], work: Path, *, box: bool, draw_extra: list[str],
+                   json_out: Path | None) -> None:
+    """``--template-only``: per sequence the template's J against the first mask, its control
+    points and the draw's time, then the mean."""
+    rows = []
+    print(f"{'sequence':<20} {'tmpl':>5} {'ctrl':>4} {'draw s':>6}  source")
+    for seq in seqs:
+        r = draw_template(seq, work, box=box, draw_extra=draw_extra)
+        rows.append(r)
+        if "error" in r:
+            print(f"{seq.name:<20} {r['error']}", flush=True)
+            continue
+        note = r["source"].split(")", 1)[0].split("(", 1)[1] if "(" in r["source"] else ""
+        print(f"{seq.name:<20} {_f(r['tmpl']):>5} {r['n_ctrl']:>4} {r['draw_wall']:>6.1f}  {note}", flush=True)
+    ok = [r for r in rows if "error" not in r]
+    if ok:
+        print(f"{'mean (' + str(len(ok)) + ')':<20} {_f(np.mean([r['tmpl'] for r in ok])):>5} "
+              f"{np.mean([r['n_ctrl'] for r in ok]):>4.0f} {np.mean([r['draw_wall'] for r in ok]):>6.1f}")
+    if json_out:
+        json_out.write_text(json.dumps([{k: (str(v) if isinstance(v, Path) else v) for k, v in r.items()}
+                                        for r in rows], indent=1))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("folders", nargs="*", type=Path, help="DAVIS-layout folders (default: the shared dev set)")
@@ -185,6 +231,9 @@ def main() -> None:
     ap.add_argument("--work", type=Path, help="keep outputs here (default: a temporary folder)")
     ap.add_argument("--json", type=Path, help="write every figure to this JSON file")
     ap.add_argument("--extra", default="", help="extra options for `trackcli track`, one string")
+    ap.add_argument("--draw-extra", default="", help="extra options for `trackcli draw`, one string")
+    ap.add_argument("--template-only", action="store_true",
+                    help="only draw the frame-0 templates and score them against the first mask (no tracking)")
     a = ap.parse_args()
     folders = a.folders or [f for f in DEFAULT_FOLDERS if f.is_dir()]
     seqs = [s for f in folders for s in sequences(f)]
@@ -195,6 +244,8 @@ def main() -> None:
         sys.exit("no DAVIS-layout sequences found")
     work = a.work or Path(tempfile.mkdtemp(prefix="davis-"))
     work.mkdir(parents=True, exist_ok=True)
+    if a.template_only:
+        return template_table(seqs, work, box=a.box, draw_extra=a.draw_extra.split(), json_out=a.json)
     rows = []
     head = f"{'sequence':<20} {'J':>5} {'F':>5} {'tmpl':>5} {'lost':>5} {'flag|off':>9} {'flag|held':>9} {'fps':>5}"
     if a.baseline:
@@ -204,6 +255,7 @@ def main() -> None:
         r = run_sequence(seq, work, box=a.box, extra=a.extra.split())
         if a.baseline:
             r.update(baselines(seq))
+        r.pop("template", None)
         rows.append(r)
         if "error" in r:
             print(f"{seq.name:<20} {r['error']}")

@@ -24,8 +24,9 @@ import time
 
 import numpy as np
 
-from trackcli.dynamics.ar2 import AR2, oscillator_coefficients
+from trackcli.dynamics.ar2 import AR2
 from trackcli.dynamics.em import InformationSequence, fit_ar2_em
+from trackcli.dynamics.handset import oscillator_coefficients
 from trackcli.dynamics.learning import fit_ar2
 
 TAU = 0.04

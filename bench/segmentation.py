@@ -30,6 +30,8 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from trackcli.sample_data import load_outline, load_truth, true_outline  # noqa: E402
+from trackcli.run import drawing  # noqa: E402
+from trackcli.segment import grabcut, masks  # noqa: E402
 from trackcli.shapes import draw  # noqa: E402
 
 CACHE = REPO / "bench" / ".cache"
@@ -81,14 +83,15 @@ def footage_cases(footage: Path, every: int):
 
 def template_mask(mask: np.ndarray) -> np.ndarray:
     """The mask of the template ``draw`` fits to ``mask``'s outline (its default control points:
-    12, or 24 for detail 12 cannot follow; its fallbacks included), rasterised."""
+    from 12 up until the curve covers the outline, :func:`trackcli.run.drawing.fit_covering`),
+    rasterised."""
     import logging
 
     from trackcli.shapes.spline import dense_polygon
 
-    logging.getLogger("trackcli").setLevel(logging.ERROR)  # the fallbacks' warnings
-    t = draw.fit_template(draw.mask_outline(mask), draw.DEFAULT_CTRL, frame_size=(mask.shape[1], mask.shape[0]),
-                          detail_ctrl=draw.DETAIL_CTRL)
+    logging.getLogger("trackcli").setLevel(logging.ERROR)  # the fit's warnings
+    t = drawing.fit_template(masks.mask_outline(mask), drawing.DEFAULT_CTRL, frame_size=(mask.shape[1], mask.shape[0]),
+                             detail_ctrl=drawing.DETAIL_CTRL)
     return draw.polygon_mask(dense_polygon(t.Q, t.basis(), 400), (mask.shape[1], mask.shape[0]))
 
 
@@ -113,10 +116,10 @@ def main() -> None:
     for name, img, truth, box in cases:
         if args.grey:
             img = cv2.cvtColor(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), cv2.COLOR_GRAY2BGR)
-        mask = draw.segment_box(img, box)
-        groups.setdefault(name, []).append(draw.mask_iou(mask, truth))
+        mask = grabcut.segment_box(img, box)
+        groups.setdefault(name, []).append(masks.mask_iou(mask, truth))
         if args.fit:
-            fitted.setdefault(name, []).append(draw.mask_iou(template_mask(mask), truth))
+            fitted.setdefault(name, []).append(masks.mask_iou(template_mask(mask), truth))
         n += 1
     sec = time.perf_counter() - t0
     head = f"{'group':28s} {'cases':>5s} {'mean IoU':>9s} {'min':>6s}"

@@ -105,7 +105,8 @@ def main() -> None:
 
     import trackcli.run.batch  # noqa: F401
     import trackcli.cli  # noqa: F401
-    import trackcli.shapes.draw  # noqa: F401
+    import trackcli.run.drawing  # noqa: F401
+    import trackcli.segment.grabcut  # noqa: F401
     import trackcli.run.evaluate  # noqa: F401
     import trackcli.run.train  # noqa: F401
 

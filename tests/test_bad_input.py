@@ -63,7 +63,8 @@ def write_clip(path: Path, frames: int = FRAMES) -> Path:
 
 
 def write_template(path: Path, clip: str, size=CLIP_SIZE, points=None) -> Path:
-    from trackcli.shapes.draw import ellipse_outline, fit_template
+    from trackcli.shapes.draw import ellipse_outline
+    from trackcli.run.drawing import fit_template
     from trackcli.shapes.template import save_template
 
     outline = ellipse_outline(70.0, 60.0, 28.0, 36.0) if points is None else np.asarray(points, float)
@@ -601,11 +602,11 @@ def test_an_interrupted_job_stops_at_a_frame_and_leaves_nothing(tmp_path, drawn)
 
 
 def test_a_worker_interrupted_before_its_job_refuses_it(monkeypatch):
-    from trackcli.run import batch
+    from trackcli.run import executors
 
-    monkeypatch.setattr(batch, "_interrupted", True)
+    monkeypatch.setattr(executors, "_interrupted", True)
     with pytest.raises(KeyboardInterrupt):
-        batch._worker_job(None, "unused")
+        executors._worker_job(None, "unused")
 
 
 def test_the_parent_removes_what_unfinished_jobs_left(tmp_path):

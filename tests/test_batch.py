@@ -366,8 +366,6 @@ def test_settings_merge_in_order(inputs, tmp_path):
 
 
 @pytest.mark.parametrize("change, code, message", [
-    (lambda d: d["clips"][1].update(template="absent.yaml"), 4, "clips[1].template: no such file: "),
-    (lambda d: d["clips"][0].update(clip="absent.mp4"), 4, "clips[0].clip: no such file or folder: "),
     (lambda d: d["defaults"].update(model="absent.yaml"), 4, "defaults.model: no such file: "),
     (lambda d: d["clips"][2].update(tracker="meanshift"), 3,
      f"clips[2].tracker: expected one of {', '.join(TRACKERS)}, got 'meanshift'"),

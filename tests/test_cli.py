@@ -15,7 +15,8 @@ from conftest import CLIP_DRIFT, CLIP_ELLIPSE, CLIP_FRAMES, CLIP_SIZE, CONFIGS
 from trackcli import __version__
 from trackcli.cli import cli
 from trackcli.settings import Settings, render_commented, settings_from_dict
-from trackcli.shapes.draw import ellipse_outline, mask_iou, polygon_mask
+from trackcli.shapes.draw import ellipse_outline, polygon_mask
+from trackcli.segment.masks import mask_iou
 from trackcli.shapes.spline import dense_polygon
 from trackcli.shapes.template import load_template
 
@@ -498,7 +499,7 @@ def test_eval_plot_refuses_to_write_over_its_inputs(tracked):
 
 def test_a_failed_draw_keeps_the_outputs_of_the_run_before(tmp_path, ellipse_clip, monkeypatch):
     from trackcli.errors import InputError
-    from trackcli.shapes import draw
+    from trackcli.run import drawing
 
     out = tmp_path / "t.yaml"
     run(["draw", ellipse_clip, "--ellipse", "70,60,28,36", "-o", out], 0)
@@ -507,7 +508,7 @@ def test_a_failed_draw_keeps_the_outputs_of_the_run_before(tmp_path, ellipse_cli
     def fail(path, *args, **kwargs):
         raise InputError(f"{path}: cannot write recording (disk full)")
 
-    monkeypatch.setattr(draw, "record_template", fail)
+    monkeypatch.setattr(drawing, "record_template", fail)
     line = one_line_error(run(["draw", ellipse_clip, "--ellipse", "72,60,28,36", "-o", out,
                                "--rrd", tmp_path / "t.rrd"], 4))
     assert str(tmp_path / "t.rrd") in line and ".part" not in line
@@ -526,12 +527,12 @@ def test_render_to_a_folder_or_an_unwritable_place_names_the_cause(tmp_path, ell
 
 
 def test_draw_finds_an_impossible_output_folder_before_segmenting(tmp_path, ellipse_clip, monkeypatch):
-    from trackcli.shapes import draw
+    from trackcli.segment import grabcut
 
     def never(*args, **kwargs):
         raise AssertionError("segmented although the output cannot be written")
 
-    monkeypatch.setattr(draw, "segment_candidates", never)
+    monkeypatch.setattr(grabcut, "segment_candidates", never)
     blocker = tmp_path / "a file"
     blocker.write_text("")
     line = one_line_error(run(["draw", ellipse_clip, "--box", "40,20,60,80", "-o", blocker / "t.yaml"], 4))

@@ -56,7 +56,7 @@ def test_defaults_load_without_a_file():
     assert s.dynamics.units == "object"
     assert s.dynamics.translation.rho is None and s.dynamics.translation.gamma0 == 5.0
     assert s.dynamics.deformation.rho == 0.1  # the deformation section has its own defaults
-    assert s.condensation.likelihood == "discriminant"
+    assert s.observation.likelihood == "discriminant"
     assert s.video.fps is None and s.video.end is None
 
 
@@ -226,10 +226,10 @@ def test_valid_edge_values_are_accepted(key, value, stored):
 
 
 def test_overrides_beat_file_values_and_defaults_fill_the_rest(tmp_path):
-    p = write(tmp_path, "seed: 5\ncondensation:\n  particles: 200\n  sigma: 2.5\n")
+    p = write(tmp_path, "seed: 5\ncondensation:\n  particles: 200\n  init_speed: 2.5\n")
     s = load_settings(p, {"condensation.particles": 800, "kalman.rho_f": 7.0})
     assert s.condensation.particles == 800  # override beats the file
-    assert s.condensation.sigma == 2.5  # the file's sibling survives the override
+    assert s.condensation.init_speed == 2.5  # the file's sibling survives the override
     assert s.seed == 5  # file value kept
     assert s.kalman.rho_f == 7.0  # override into a section the file does not mention
     assert s.kalman.kappa == Settings().kalman.kappa
@@ -442,3 +442,109 @@ def test_preset_by_name_from_any_folder(tmp_path, monkeypatch):
         load_settings("nosuch")
     with pytest.raises(ConfigError, match="no such configuration file or preset"):
         load_settings("sub/tight.yaml")
+
+
+# ---------------------------------------------------------------------------------------------
+# Settings that moved to sections of their own
+
+
+def test_a_file_with_the_old_keys_is_read_under_the_new_ones_with_a_warning_each(tmp_path, caplog):
+    import logging
+
+    from trackcli.settings import MOVED
+
+    p = write(tmp_path, "condensation:\n  particles: 200\n  likelihood: clutter\n  colour_weight: 1.5\n"
+                        "  reacquire: false\n  reacquire_after: 5\n  jump_size: 0.5\n")
+    with caplog.at_level(logging.WARNING, logger="trackcli"):
+        s = load_settings(p)
+    assert s.condensation.particles == 200
+    assert (s.observation.likelihood, s.observation.colour_weight) == ("clutter", 1.5)
+    assert (s.reacquire.enabled, s.reacquire.after, s.jumps.size) == (False, 5, 0.5)
+    assert caplog.messages == [f"{p}: condensation.{old} is now {MOVED['condensation.' + old]}: read as that "
+                               "(rename it)" for old in ("likelihood", "colour_weight", "reacquire",
+                                                         "reacquire_after", "jump_size")]
+    # every old key has a home that exists, and no old key is a setting any more
+    keys = {k for k, _, _, _ in describe_settings()}
+    assert set(MOVED.values()) <= keys and not set(MOVED) & keys
+
+
+def test_an_old_key_in_an_override_or_a_stored_model_is_read_under_its_new_name(caplog):
+    import logging
+
+    with caplog.at_level(logging.WARNING, logger="trackcli"):
+        s = load_settings(None, {"condensation.jump_fraction": 0.0, "condensation.search": 12.0})
+    assert (s.jumps.fraction, s.observation.search) == (0.0, 12.0)
+    assert "condensation.jump_fraction is now jumps.fraction" in caplog.text
+    caplog.clear()
+    # the settings stored in a model learned before the move: read quietly (the user cannot fix them)
+    stored = to_dict(Settings())
+    for section in ("observation", "reacquire", "jumps"):
+        del stored[section]
+    stored["condensation"].update({"likelihood": "truncated", "still_weight": 0.0, "reacquire_speed": 0.0})
+    with caplog.at_level(logging.WARNING, logger="trackcli"):
+        s = settings_from_dict(stored)
+    assert (s.observation.likelihood, s.observation.still_weight, s.reacquire.speed) == ("truncated", 0.0, 0.0)
+    assert caplog.text == ""
+
+
+def test_a_file_with_both_names_of_a_setting_is_refused(tmp_path):
+    p = write(tmp_path, "condensation:\n  likelihood: clutter\nobservation:\n  likelihood: truncated\n")
+    with pytest.raises(ConfigError) as info:
+        load_settings(p)
+    assert str(info.value) == (f"{p}: condensation.likelihood: moved to observation.likelihood, and both are given; "
+                               "keep observation.likelihood")
+
+
+def test_a_model_learned_with_the_old_keys_still_loads(tmp_path):
+    """A model file keeps the settings it was learned with, under the names of its day."""
+    from trackcli.dynamics.model import load_model, save_model
+
+    model = tmp_path / "m.yaml"
+    save_model(model, _tiny_model())
+    data = yaml.safe_load(model.read_text())
+    for section in ("observation", "reacquire", "jumps"):
+        del data["settings"][section]
+    data["settings"]["condensation"]["colour_weight"] = 2.0
+    model.write_text(yaml.safe_dump(data))
+    assert load_model(model).settings.observation.colour_weight == 2.0
+
+
+def _tiny_model():
+    import numpy as np
+
+    from trackcli.dynamics.handset import handset_dynamics
+    from trackcli.dynamics.model import Model
+    from trackcli.shapes import shape_space as ss
+    from trackcli.shapes.spline import SplineBasis
+    from trackcli.shapes.template import Template
+
+    t = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    ctrl = np.column_stack([50 + 10 * np.cos(t), 40 + 12 * np.sin(t)])
+    template = Template(ctrl, degree=2, closed=True)
+    space = ss.similarity(SplineBasis(8, degree=2, closed=True), np.concatenate([ctrl[:, 0], ctrl[:, 1]]))
+    return Model(template, space, handset_dynamics(space, Settings().dynamics, 0.04), Settings())
+
+
+def test_config_show_of_an_old_file_prints_the_new_layout_and_warns(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    p = write(tmp_path, "condensation:\n  reacquire_speed: 0\n")
+    env = {**os.environ, "PYTHONPATH": str(CONFIGS.parent)}
+    res = subprocess.run([sys.executable, "-m", "trackcli.cli", "config", "show", str(p)], capture_output=True,
+                         text=True, env=env, timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert res.stderr == f"WARNING: {p}: condensation.reacquire_speed is now reacquire.speed: read as that (rename it)\n"
+    shown = yaml.safe_load(res.stdout)
+    assert shown["reacquire"]["speed"] == 0 and "reacquire_speed" not in shown["condensation"]
+
+
+def test_a_batch_manifest_setting_under_its_old_name_lands_under_the_new_one():
+    """``batch`` sets a job's settings key by key (``set_dotted``) on the full settings."""
+    from trackcli.settings import set_dotted
+
+    data = to_dict(Settings())
+    set_dotted(data, "condensation.jump_size", 0.7, "clips[0].settings")
+    assert "jump_size" not in data["condensation"]
+    assert settings_from_dict(data).jumps.size == 0.7

@@ -16,6 +16,9 @@ import pytest
 
 from trackcli.io.video import Frame
 from trackcli.run import confirm
+from trackcli.run import drawing
+from trackcli.segment import grabcut
+from trackcli.segment.masks import mask_iou, mask_outline
 from trackcli.shapes import draw
 
 W, H = 320, 240
@@ -57,7 +60,7 @@ def masks() -> list[np.ndarray]:
 
 
 def fit(mask: np.ndarray):
-    return draw.fit_template(draw.mask_outline(mask), draw.DEFAULT_CTRL, frame_size=(W, H), _quiet=True)
+    return drawing.fit_template(mask_outline(mask), drawing.DEFAULT_CTRL, frame_size=(W, H), _quiet=True)
 
 
 @pytest.fixture(scope="module")
@@ -140,7 +143,7 @@ def test_draw_keeps_the_mask_the_next_frames_hold(tmp_path, moving, monkeypatch)
     seen = {}
 
     def segment(image, box, **kw):
-        return draw.Segmentation(tuple(masks()), 0, "GrabCut")
+        return grabcut.Segmentation(tuple(masks()), 0, "GrabCut")
 
     real = confirm.confirm
 
@@ -148,7 +151,7 @@ def test_draw_keeps_the_mask_the_next_frames_hold(tmp_path, moving, monkeypatch)
         seen.update(n=len(frames), first=frames[0].index, fps=fps)
         return real(ms, order, fit, frames, fps, **kw)
 
-    monkeypatch.setattr(draw, "segment_candidates", segment)
+    monkeypatch.setattr(grabcut, "segment_candidates", segment)
     monkeypatch.setattr(confirm, "confirm", spy)
     t = draw_box(tmp_path, clip, "--frame", "3")
     assert seen == {"n": confirm.CONFIRM_FRAMES, "first": 3, "fps": 25.0}
@@ -156,7 +159,7 @@ def test_draw_keeps_the_mask_the_next_frames_hold(tmp_path, moving, monkeypatch)
     from trackcli.shapes.spline import dense_polygon
 
     drawn = draw.polygon_mask(dense_polygon(t.Q, t.basis(), 400), (W, H))
-    assert draw.mask_iou(masks()[1], drawn) > 0.9
+    assert mask_iou(masks()[1], drawn) > 0.9
 
 
 @pytest.mark.parametrize("after", [confirm.CONFIRM_LEAST - 1, confirm.CONFIRM_LEAST])
@@ -165,8 +168,8 @@ def test_draw_asks_the_next_frames_only_when_there_are_enough(tmp_path, monkeypa
     and the frame's choice stands; with CONFIRM_LEAST of them the masks are tried on them all."""
     n = 20
     clip = write_clip(tmp_path / "short.avi", scene(n, 2.5))
-    monkeypatch.setattr(draw, "segment_candidates", lambda image, box, **kw: draw.Segmentation(tuple(masks()), 0,
-                                                                                                 "GrabCut"))
+    monkeypatch.setattr(grabcut, "segment_candidates",
+                        lambda image, box, **kw: grabcut.Segmentation(tuple(masks()), 0, "GrabCut"))
     seen = []
     real = confirm.trial
 

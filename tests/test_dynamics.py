@@ -10,14 +10,8 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from trackcli.dynamics.ar2 import (
-    AR2,
-    SubspaceModel,
-    h_orthogonal_projector,
-    oscillator_coefficients,
-    partitioned,
-    symmetric_sqrt,
-)
+from trackcli.dynamics.ar2 import AR2, symmetric_sqrt
+from trackcli.dynamics.handset import SubspaceModel, h_orthogonal_projector, oscillator_coefficients, partitioned
 from trackcli.errors import ConfigError, DataError, ModelError
 
 TAU = 0.04  # 25 frames per second

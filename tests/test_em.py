@@ -10,11 +10,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from trackcli.dynamics.ar2 import AR2, oscillator_coefficients
+from trackcli.dynamics.ar2 import AR2
+from trackcli.dynamics.handset import oscillator_coefficients
 from trackcli.dynamics.em import InformationSequence, expected_statistics, fit_ar2_em
 from trackcli.errors import DataError
 from trackcli.dynamics.learning import AR2Statistics, fit_ar2
-from trackcli.trackers.smoothing import filter_information, smooth_filtered
+from trackcli.dynamics.rts import filter_information, smooth_filtered
 
 TAU = 0.04
 F_TRUE, BETA_TRUE, RHO_TRUE = 1.0, 0.5, 10.0

@@ -498,3 +498,34 @@ def test_visible_column_is_a_fraction(tmp_path):
 
     sample = Path(__file__).resolve().parents[1] / "sample_data" / "test.truth.csv"
     assert load_truth(sample).present.all()
+
+
+def test_the_truth_formats_place_outlines_only_with_the_function_given(tmp_path):
+    # io.truth reads the formats and knows nothing of the sample clips; the outlines beside a
+    # sample clip's truth CSV are placed by the function eval's reader passes it
+    from pathlib import Path
+
+    from trackcli.io import truth as formats
+    from trackcli.sample_data import load_outline, load_truth as load_sample_truth, true_outline
+
+    sample = Path(__file__).resolve().parents[1] / "sample_data" / "test.truth.csv"
+    assert formats.load_truth(sample).outline is None
+    gt = load_truth(sample)
+    rows = load_sample_truth(sample).select(0)
+    base = load_outline(sample.with_name("test.outline.json"))
+    assert gt.outline.shape == (len(gt.frame), len(base.points), 2)
+    np.testing.assert_allclose(gt.outline[7], true_outline(rows.row(7), base), atol=1e-9)
+    seen = []
+
+    def place(path, rs):
+        seen.append((path, len(rs)))
+        return gt.outline
+
+    assert formats.load_truth(sample, outlines=place).outline is not None
+    assert seen == [(sample.with_name("test.outline.json"), len(gt.frame))]
+
+    def refuse(path, rs):
+        raise ValueError("no pose")
+
+    with pytest.raises(InputError, match="cannot place the outline of test.outline.json"):
+        formats.load_truth(sample, outlines=refuse)

@@ -1,4 +1,4 @@
-"""Tests for the second-order Kalman filter steps (trackcli.trackers.kalman, AC Fig 10.3)."""
+"""Tests for the second-order Kalman filter steps (trackcli.dynamics.kalman, AC Fig 10.3)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from statsmodels.tsa.statespace.kalman_filter import KalmanFilter
 
 from trackcli.errors import ConfigError, DataError
-from trackcli.trackers.kalman import (
+from trackcli.dynamics.kalman import (
     KalmanState,
     assimilate,
     filter_sequence,

@@ -9,7 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from trackcli.dynamics.ar2 import AR2, oscillator_coefficients
+from trackcli.dynamics.ar2 import AR2
+from trackcli.dynamics.handset import oscillator_coefficients
 from trackcli.errors import DataError
 from trackcli.dynamics.learning import AR2Statistics, fit_ar2, stabilise
 

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from trackcli.observe import measure
+from trackcli.observe import likelihoods, measure
 from trackcli.errors import ConfigError, DataError
 
 BRIGHT, DARK = 200.0, 40.0
@@ -266,7 +266,7 @@ def test_nothing_is_found_outside_the_image():
     assert len(measure.find_features(fimg, [[20.0, -5.0]], [[1.0, 0.0]], 10.0, threshold=1.0)) == 0
     assert len(measure.find_features(fimg, [[20.0, 3.0]], [[1.0, 0.0]], 10.0, threshold=1.0)) == 1
     far = np.full((3, 4, 2), 1e12)
-    ll = measure.log_likelihood(fimg, far, np.tile([1.0, 0.0], (3, 4, 1)), h=10, sigma=2, alpha=0.01, threshold=1.0)
+    ll = likelihoods.log_likelihood(fimg, far, np.tile([1.0, 0.0], (3, 4, 1)), h=10, sigma=2, alpha=0.01, threshold=1.0)
     np.testing.assert_array_equal(ll, 0.0)
 
 
@@ -287,7 +287,7 @@ def test_rejects_bad_arguments(ellipse_scene):
     with pytest.raises(DataError, match="broadcast"):
         measure.kalman_features(fimg, pts, nrm, np.ones(7), threshold=5.0)
     with pytest.raises(ConfigError, match="alpha"):
-        measure.log_likelihood(fimg, pts[None], nrm[None], h=5, sigma=2, alpha=0, threshold=5)
+        likelihoods.log_likelihood(fimg, pts[None], nrm[None], h=5, sigma=2, alpha=0, threshold=5)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -367,7 +367,7 @@ def test_log_likelihood_equals_plain_loop_reference(polarity):
     ang = rng.uniform(0, 2 * np.pi, size=(3, 9))
     nrm = np.stack([np.cos(ang), np.sin(ang)], axis=-1)
     kw = dict(h=6.5, sigma=2.0, alpha=0.02, threshold=1.5, polarity=polarity)
-    got = measure.log_likelihood(img, pts, nrm, **kw)
+    got = likelihoods.log_likelihood(img, pts, nrm, **kw)
     ref = reference_log_likelihood(img, pts, nrm, **kw)
     assert got.shape == (3,)
     assert ref.max() > 1  # the case is not trivial
@@ -387,7 +387,7 @@ def test_log_likelihood_is_largest_at_the_true_curve():
     shifts = np.array([(dx, dy) for dx in range(-8, 9, 2) for dy in range(-8, 9, 2)], dtype=float)
     hyp_pts = pts[None] + shifts[:, None, :]
     hyp_nrm = np.broadcast_to(nrm, hyp_pts.shape)
-    ll = measure.log_likelihood(fimg, hyp_pts, hyp_nrm, h=15, sigma=3, alpha=0.02, threshold=8)
+    ll = likelihoods.log_likelihood(fimg, hyp_pts, hyp_nrm, h=15, sigma=3, alpha=0.02, threshold=8)
     assert ll.shape == (len(shifts),)
     assert tuple(shifts[np.argmax(ll)]) == (0.0, 0.0)
     # Every normal sees the outline at nu = 0, so the truth scores M log(1 + c).
@@ -402,8 +402,8 @@ def test_log_likelihood_chunks_give_the_same_answer_beyond_the_remap_limit(ellip
     hyp_pts = pts[None] + rng.normal(0, 6, size=(n, 1, 2))
     hyp_nrm = np.broadcast_to(nrm, hyp_pts.shape)
     kw = dict(h=15, sigma=3, alpha=0.02, threshold=8)
-    whole = measure.log_likelihood(fimg, hyp_pts, hyp_nrm, **kw)
-    pieces = np.concatenate([measure.log_likelihood(fimg, hyp_pts[i : i + 7], hyp_nrm[i : i + 7], **kw) for i in range(0, n, 7)])
+    whole = likelihoods.log_likelihood(fimg, hyp_pts, hyp_nrm, **kw)
+    pieces = np.concatenate([likelihoods.log_likelihood(fimg, hyp_pts[i : i + 7], hyp_nrm[i : i + 7], **kw) for i in range(0, n, 7)])
     np.testing.assert_allclose(whole, pieces, rtol=1e-12)
     assert np.ptp(whole) > 10
 

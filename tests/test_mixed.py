@@ -15,9 +15,9 @@ from hypothesis import strategies as st
 from conftest import REPO, sample_clip
 from trackcli.cli import cli
 from trackcli.dynamics.ar2 import AR2
-from trackcli.dynamics.mixed import (Bounce, MixedDynamics, MixedPrediction, check_transitions, learn_mixed,
-                                     load_mixed, mixed_from_dict, read_label_ranges, stationary_distribution,
-                                     transitions_from_labels)
+from trackcli.dynamics.mixed import (check_transitions, learn_mixed, load_mixed, mixed_from_dict, read_label_ranges,
+                                     stationary_distribution, transitions_from_labels)
+from trackcli.dynamics.mixed_dynamics import Bounce, MixedDynamics, MixedPrediction
 from trackcli.errors import ModelError
 from trackcli.settings import Settings
 from trackcli.run.bounces import detections, match, run_experiment, true_bounces
@@ -115,7 +115,7 @@ def test_the_example_flight_settings_equal_the_flight_label():
     assert mixed["labels"][0]["name"] == "flight"
     assert mixed["labels"][0]["dynamics"] == single["dynamics"]
     settings = yaml.safe_load((EXAMPLES / "bouncing_ball.settings.yaml").read_text())
-    assert settings["condensation"] == single["condensation"]  # only the dynamics differ
+    assert settings["jumps"] == single["jumps"]  # only the dynamics differ
     load_mixed(EXAMPLES / "bouncing_ball.mixed.yaml")
 
 
@@ -292,7 +292,7 @@ def ball_runs(tmp_path_factory):
     assert model["labels"][1]["bounce"]["floor"] == 318  # the sample clip's floor
     # the single model with the default braking jumps of the motion prior (and no isotropic ones)
     braking = yaml.safe_load((EXAMPLES / "bouncing_ball.flight.yaml").read_text())
-    braking["condensation"]["jump_brake"] = Settings().condensation.jump_brake
+    braking["jumps"]["brake"] = Settings().jumps.brake
     (out / "braking.yaml").write_text(yaml.safe_dump(braking))
     runs = {}
     for name, args in (("single", ["-c", str(EXAMPLES / "bouncing_ball.flight.yaml")]),
@@ -319,10 +319,10 @@ def test_mixed_state_tracks_through_every_bounce_where_one_model_does_not(ball_r
 
 def test_braking_jumps_let_one_model_follow_the_bounces(ball_runs):
     """A few samples whose velocity is slowed, stopped or turned back (the default share,
-    condensation.jump_brake) carry the single flight model through each bounce, where without
+    jumps.brake) carry the single flight model through each bounce, where without
     them it overshoots through the floor."""
     clip, runs, _ = ball_runs
-    assert Settings().condensation.jump_brake > 0
+    assert Settings().jumps.brake > 0
     e = run_experiment(runs["braking"], runs["mixed"], clip.with_suffix(".truth.csv"))
     assert e.single.max_error < 20 and e.single.mean_error < 5
 

@@ -8,8 +8,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from trackcli.errors import ConfigError
-from trackcli.trackers import kalman, modes
-from trackcli.trackers.kalman import KalmanState
+from trackcli.dynamics import kalman
+from trackcli.trackers import modes
+from trackcli.dynamics.kalman import KalmanState
 
 FAST = settings(max_examples=60, deadline=None)
 

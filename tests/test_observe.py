@@ -10,13 +10,15 @@ import numpy as np
 import pytest
 
 from trackcli.errors import DataError
-from trackcli.observe import kernels, measure
+from trackcli.observe import kernels, likelihoods, measure
+from trackcli.observe import appearance, reacquire
 from trackcli.observe import discriminant as observe
-from trackcli.settings import CondensationSettings, DynamicsSettings, MeasurementSettings, SubspaceDynamics
+from trackcli.settings import DynamicsSettings, MeasurementSettings, ObservationSettings, SubspaceDynamics
 from trackcli.shapes.shape_space import similarity
 from trackcli.shapes.spline import SplineBasis
 from trackcli.observe.presence import Presence
-from trackcli.observe.scene import StillScene, in_first_light
+from trackcli.observe.appearance import in_first_light
+from trackcli.observe.scene import StillScene
 from trackcli.shapes.outline import contour_summary, measurement_sampler, object_size
 from trackcli.dynamics.handset import handset_dynamics
 
@@ -54,7 +56,7 @@ def object_frame(rng, centre=(240.0, 120.0), axes=(30.0, 40.0)) -> np.ndarray:
 
 
 def presence_for(img: np.ndarray, space):
-    m, c = MeasurementSettings(), CondensationSettings()
+    m, c = MeasurementSettings(), ObservationSettings()
     fimg = measure.feature_image(img, sigma=m.smoothing, edge_sigma=m.edge_sigma)
     sampler = measurement_sampler(space, M)
     judge = Presence.learn(img, fimg, space, sampler, np.zeros(space.Nx), m, c)
@@ -98,8 +100,8 @@ def test_clutter_likelihood_rewards_texture_where_the_discriminant_does_not():
     # "shrinking dot" of a tracker drawn into texture)
     shifts = np.array([[0.0, 0, 0, 0], [-160.0, 0, 0, 0], [-160.0, -40, -0.5, 0], [-120.0, 30, -0.6, 0]])
     pts, nrm = space.points_normals(shifts, sampler)
-    c = CondensationSettings()
-    clutter = measure.log_likelihood(fimg, pts, nrm, h=c.search, sigma=c.sigma, alpha=c.alpha, threshold=8.0)
+    c = ObservationSettings()
+    clutter = likelihoods.log_likelihood(fimg, pts, nrm, h=c.search, sigma=c.sigma, alpha=c.alpha, threshold=8.0)
     disc = judge.score(ev, pts, nrm)
     assert clutter[1:].max() >= 0.8 * clutter[0]  # the clutter model: texture nearly as good as the object
     assert disc[0] > disc[1:].max() + 50  # the discriminant: the object wins by far
@@ -143,7 +145,7 @@ def test_reacquisition_weights_keep_the_set_a_fair_sample_of_the_prior():
     prior = np.zeros((n, 4))
     prior[:, :2] = rng.normal(0.0, 10.0, (n, 2))
     centres = np.array([[100.0 + 150.0, 120.0], [40.0 + 150.0, 60.0]])  # far from the prior, in image coords
-    propose = observe.reacquisition_proposal(centres, np.array([2.0, 1.0]), np.array([150.0, 120.0]), size,
+    propose = reacquire.reacquisition_proposal(centres, np.array([2.0, 1.0]), np.array([150.0, 120.0]), size,
                                              (W, H), fraction=0.3, reappear=1e-9)
     prev = prior - 1.0  # moving by (1, 1) per frame
     out_prev, out, log_c = propose(prev, prior, rng)
@@ -174,9 +176,9 @@ def test_reacquisition_with_scale_search_keeps_the_prior_and_spreads_the_new_sca
     def log_scale(X):
         return np.log(space.pose(X)[:, 3])
 
-    search = observe.ScaleSearch(log_scale, space.scaled, 2.0)
+    search = reacquire.ScaleSearch(log_scale, space.scaled, 2.0)
     centres = np.array([[250.0, 120.0], [190.0, 60.0]])
-    propose = observe.reacquisition_proposal(centres, np.array([2.0, 1.0]), space.origin, 40.0, (W, H),
+    propose = reacquire.reacquisition_proposal(centres, np.array([2.0, 1.0]), space.origin, 40.0, (W, H),
                                              fraction=0.3, reappear=1e-9, scale=search)
     prev = prior - 0.01
     out_prev, out, log_c = propose(prev, prior, rng)
@@ -205,7 +207,7 @@ def test_colour_peaks_find_an_object_coloured_region_of_the_objects_size():
     space = ellipse_space(240, 120, 30, 40)
     judge, _, _ = presence_for(first, space)
     later = object_frame(rng, centre=(60.0, 60.0))  # the object now over the textured half
-    centres, strengths = observe.colour_peaks(judge.app.colour_map(later), judge.app.size)
+    centres, strengths = reacquire.colour_peaks(judge.app.colour_map(later), judge.app.size)
     assert len(centres) >= 1
     assert np.hypot(*(centres[0] - (60.0, 60.0))) < 12
     assert strengths[0] > 1.0
@@ -229,10 +231,10 @@ def test_on_grey_footage_a_smooth_object_is_told_from_texture_of_its_own_grey_le
     cv2.ellipse(outside, ((240.0, 120.0), (84.0, 104.0), 0.0), 0, -1)
     assert cmap[inside > 0].mean() > 1.0 and cmap[outside > 0].mean() < -1.0
     # the grey levels alone: inside and outside alike (the flat bin is level + GREY_BINS x texture)
-    assert observe.GREY_BINS * (len(observe.TEXTURE_EDGES) + 1) <= 256
-    levels = observe.hsv_bins(frame, grey=True) % observe.GREY_BINS
-    share_in = np.bincount(levels[disc], minlength=observe.GREY_BINS) / np.count_nonzero(disc)
-    share_out = np.bincount(levels[outside > 0], minlength=observe.GREY_BINS) / np.count_nonzero(outside)
+    assert appearance.GREY_BINS * (len(appearance.TEXTURE_EDGES) + 1) <= 256
+    levels = appearance.hsv_bins(frame, grey=True) % appearance.GREY_BINS
+    share_in = np.bincount(levels[disc], minlength=appearance.GREY_BINS) / np.count_nonzero(disc)
+    share_out = np.bincount(levels[outside > 0], minlength=appearance.GREY_BINS) / np.count_nonzero(outside)
     assert 0.5 * np.abs(share_in - share_out).sum() < 0.1
 
 
@@ -275,7 +277,7 @@ def test_pixel_units_keep_the_books_settings():
 
 
 def test_damped_velocity_translation_has_a_free_position():
-    from trackcli.dynamics.ar2 import oscillator_coefficients
+    from trackcli.dynamics.handset import oscillator_coefficients
 
     a1, a2, b0 = oscillator_coefficients(0.0, 4.0, None, 0.04, gamma0=5.0)
     assert a1 + a2 == pytest.approx(1.0)  # an eigenvalue at 1: no pull back to a mean position
@@ -418,7 +420,7 @@ def _density_reference(img, centre, size, threshold, stride=3):
         mid = d[:, 1:-1]
         count += int(((mid > d[:, :-2]) & (mid >= d[:, 2:]) & (mid >= threshold)).sum())
         length += mid.size
-    return max(count / max(length, 1), observe.MIN_DENSITY)
+    return max(count / max(length, 1), appearance.MIN_DENSITY)
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -459,26 +461,26 @@ def test_feature_density_counts_what_the_numpy_scan_counts():
         img = cv2.GaussianBlur((rng.random((h, w)) * 255).astype(np.float32), (0, 0), float(rng.uniform(0.5, 3)))
         centre = rng.uniform(-50, 250, 2)
         size, threshold = float(rng.uniform(1, 60)), float(rng.uniform(0, 12))
-        assert observe.feature_density(img, centre, size, threshold) == _density_reference(img, centre, size, threshold)
+        assert appearance.feature_density(img, centre, size, threshold) == _density_reference(img, centre, size, threshold)
 
 
 def test_colour_map_is_the_lookup_of_the_hsv_bins():
     """The compiled colour map gives, pixel for pixel, the OpenCV composition it replaces."""
     rng = np.random.default_rng(5)
     lut = rng.uniform(-3, 3, 256).astype(np.float32)
-    app = observe.Appearance(polarity=np.zeros(4, np.int8), lambda_in=0.1, lut=lut, size=10.0,
+    app = appearance.Appearance(polarity=np.zeros(4, np.int8), lambda_in=0.1, lut=lut, size=10.0,
                              colour_offsets=np.array([1.5], np.float32))
     for shape in ((240, 320, 3), (7, 5, 3), (31, 1, 3)):
         frame = (rng.random(shape) * 256).astype(np.uint8)
-        want = cv2.LUT(observe.hsv_bins(frame), lut.reshape(1, -1))
+        want = cv2.LUT(appearance.hsv_bins(frame), lut.reshape(1, -1))
         got = app.colour_map(frame)
         assert got.dtype == np.float32 and got.shape == shape[:2]
         np.testing.assert_array_equal(got, want)
     grey = (rng.random((12, 9)) * 256).astype(np.uint8)  # a grey frame is taken as BGR with equal channels
-    np.testing.assert_array_equal(app.colour_map(grey), cv2.LUT(observe.hsv_bins(grey), lut.reshape(1, -1)))
+    np.testing.assert_array_equal(app.colour_map(grey), cv2.LUT(appearance.hsv_bins(grey), lut.reshape(1, -1)))
     grey_app = dataclasses.replace(app, grey=True)
     frame = (rng.random((40, 30, 3)) * 256).astype(np.uint8)
-    np.testing.assert_array_equal(grey_app.colour_map(frame), cv2.LUT(observe.hsv_bins(frame, grey=True),
+    np.testing.assert_array_equal(grey_app.colour_map(frame), cv2.LUT(appearance.hsv_bins(frame, grey=True),
                                                                       lut.reshape(1, -1)))
 
 
@@ -495,7 +497,7 @@ def test_the_colour_model_is_read_in_the_first_frames_light_when_the_light_chang
     judge, _, _ = presence_for(first, ellipse_space(240, 100, 30, 40))
     assert not judge.app.grey
     lit = np.clip(first.astype(np.float64) * 1.2, 0, 255).astype(np.uint8)
-    assert observe.hsv_bins(lit)[100, 240] == observe.hsv_bins(first)[220, 10]
+    assert appearance.hsv_bins(lit)[100, 240] == appearance.hsv_bins(first)[220, 10]
     inside = np.zeros((H, W), np.uint8)
     cv2.ellipse(inside, ((240.0, 100.0), (48.0, 68.0), 0.0), 1, -1)
     plain = np.zeros((H, W), np.uint8)
@@ -517,15 +519,15 @@ def test_a_colour_map_made_where_it_is_read_has_the_whole_maps_values():
     also with letterbox bars; scoring curves with it gives the whole map's scores to the bit."""
     rng = np.random.default_rng(9)
     lut = rng.uniform(-3, 3, 256).astype(np.float32)
-    app = observe.Appearance(polarity=np.zeros(4, np.int8), lambda_in=0.1, lut=lut, size=10.0,
+    app = appearance.Appearance(polarity=np.zeros(4, np.int8), lambda_in=0.1, lut=lut, size=10.0,
                              colour_offsets=np.array([1.5, 4.0], np.float32))
     frame = (rng.random((100, 130, 3)) * 256).astype(np.uint8)
     whole = app.colour_map(frame)
     for area in (None, (7, 11, 120, 90)):
         want = whole.copy()
-        lazy = observe.LazyColourMap(app, frame)
+        lazy = appearance.LazyColourMap(app, frame)
         if area is not None:
-            observe.clear_bars(want, area)
+            appearance.clear_bars(want, area)
             lazy.set_area(area)
         made = np.zeros(whole.shape, bool)
         for _ in range(6):
@@ -538,7 +540,7 @@ def test_a_colour_map_made_where_it_is_read_has_the_whole_maps_values():
         np.testing.assert_array_equal(lazy.whole(), want)
     # with an exposure: the whole map of the frame brought back to the first frame's light
     exposure = (np.array([1.2, 0.9, 1.1]), np.array([4.0, -3.0, 0.0]))
-    lazy = observe.LazyColourMap(app, frame, exposure)
+    lazy = appearance.LazyColourMap(app, frame, exposure)
     np.testing.assert_array_equal(lazy.whole(), app.colour_map(in_first_light(frame, exposure)))
     assert not np.array_equal(lazy.array, whole)
     # the tracker's scores with the map made where the samples read it
@@ -550,9 +552,9 @@ def test_a_colour_map_made_where_it_is_read_has_the_whole_maps_values():
     image = object_frame(np.random.default_rng(3))
     want = judge.score(ev, pts, nrm)
     for k in range(0, 300, 3):  # one curve a map: the edges of the part made fall everywhere
-        fresh = dataclasses.replace(ev, cmap=observe.LazyColourMap(judge.app, image))
+        fresh = dataclasses.replace(ev, cmap=appearance.LazyColourMap(judge.app, image))
         np.testing.assert_array_equal(judge.score(fresh, pts[k:k + 1], nrm[k:k + 1]), want[k:k + 1])
-    lazy_ev = dataclasses.replace(ev, cmap=observe.LazyColourMap(judge.app, image))
+    lazy_ev = dataclasses.replace(ev, cmap=appearance.LazyColourMap(judge.app, image))
     np.testing.assert_array_equal(judge.score(lazy_ev, pts, nrm), want)
     for a, b in zip(observe.per_normal_reference(judge.app, lazy_ev, pts, nrm, h=judge.h, sigma=judge.sigma,
                                                  threshold=judge.threshold, miss=judge.miss),
@@ -561,27 +563,27 @@ def test_a_colour_map_made_where_it_is_read_has_the_whole_maps_values():
         np.testing.assert_array_equal(a, b)
     assert not lazy_ev.cmap._made.all()  # only part of the frame was made
     with pytest.raises(DataError, match="colour frames only"):
-        observe.LazyColourMap(dataclasses.replace(judge.app, grey=True), object_frame(np.random.default_rng(3)))
+        appearance.LazyColourMap(dataclasses.replace(judge.app, grey=True), object_frame(np.random.default_rng(3)))
 
 
 def test_grey_frames_are_recognised():
     rng = np.random.default_rng(11)
     g = (rng.random((60, 80)) * 256).astype(np.uint8)
-    assert observe.is_grey(g)
-    assert observe.is_grey(cv2.merge([g, g, g]))
+    assert appearance.is_grey(g)
+    assert appearance.is_grey(cv2.merge([g, g, g]))
     # a monochrome video decoded to BGR: chroma noise of a few grey levels
     noisy = np.clip(cv2.merge([g, g, g]).astype(int) + rng.integers(-3, 4, (60, 80, 3)), 0, 255).astype(np.uint8)
-    assert observe.is_grey(noisy)
+    assert appearance.is_grey(noisy)
     colour = cv2.merge([g, g, g])
     colour[:20, :20] = (40, 90, 200)  # one coloured patch of 8 % of the frame
-    assert not observe.is_grey(colour)
+    assert not appearance.is_grey(colour)
     small = cv2.merge([g, g, g])
     small[30:35, 40:45] = (40, 90, 200)  # a small red object: 0.5 % of the frame
-    assert observe.is_grey(small)
+    assert appearance.is_grey(small)
     region = np.zeros((60, 80), bool)
     region[28:37, 38:47] = True
-    assert not observe.is_grey(small, region)  # ... keeps its colour when it is the object
-    assert observe.is_grey(cv2.merge([g, g, g]), region)
+    assert not appearance.is_grey(small, region)  # ... keeps its colour when it is the object
+    assert appearance.is_grey(cv2.merge([g, g, g]), region)
 
 
 def test_grey_footage_gets_an_intensity_model_that_tells_close_grey_levels_apart():
@@ -598,7 +600,7 @@ def test_grey_footage_gets_an_intensity_model_that_tells_close_grey_levels_apart
     poly = np.column_stack([100 + 30 * np.cos(t), 80 + 30 * np.sin(t)])
     nrm = np.column_stack([np.cos(t), np.sin(t)])
     fimg = measure.feature_image(img)
-    app = observe.learn_appearance(img, fimg, poly[::4], nrm[::4], poly, h=15.0, sigma=1.5, threshold=8.0)
+    app = appearance.learn_appearance(img, fimg, poly[::4], nrm[::4], poly, h=15.0, sigma=1.5, threshold=8.0)
     assert app.grey
     cmap = app.colour_map(img)
     assert cmap[80, 100] > 1.0  # the object's grey level is object-like
@@ -607,7 +609,7 @@ def test_grey_footage_gets_an_intensity_model_that_tells_close_grey_levels_apart
     # whose value bins put grey 150 and 175 together
     img_c = img.copy()
     img_c[:30, :30] = (0, 0, 255)
-    app_c = observe.learn_appearance(img_c, fimg, poly[::4], nrm[::4], poly, h=15.0, sigma=1.5, threshold=8.0)
+    app_c = appearance.learn_appearance(img_c, fimg, poly[::4], nrm[::4], poly, h=15.0, sigma=1.5, threshold=8.0)
     assert not app_c.grey
     assert app_c.colour_map(img_c)[80, 2] == pytest.approx(app_c.colour_map(img_c)[80, 100])
 
@@ -632,13 +634,13 @@ def _letterboxed(rng, h=120, w=160, bar=20):
 
 def test_letterbox_and_pillarbox_bars_are_found():
     rng = np.random.default_rng(3)
-    assert observe.picture_area(_letterboxed(rng)) == (0, 20, 160, 100)
+    assert appearance.picture_area(_letterboxed(rng)) == (0, 20, 160, 100)
     pillar = np.ascontiguousarray(_letterboxed(rng, h=160, w=120).transpose(1, 0, 2))
-    assert observe.picture_area(pillar) == (20, 0, 140, 120)
-    assert observe.picture_area(_letterboxed(rng, bar=2)) is None  # two dark rows are not a bar
-    assert observe.picture_area(np.full((90, 120, 3), 10, np.uint8)) is None  # a dark scene is not all bar
+    assert appearance.picture_area(pillar) == (20, 0, 140, 120)
+    assert appearance.picture_area(_letterboxed(rng, bar=2)) is None  # two dark rows are not a bar
+    assert appearance.picture_area(np.full((90, 120, 3), 10, np.uint8)) is None  # a dark scene is not all bar
     plain = np.clip(rng.normal(120, 30, (90, 120, 3)), 0, 255).astype(np.uint8)
-    assert observe.picture_area(plain) is None
+    assert appearance.picture_area(plain) is None
 
 
 def test_a_letterbox_edge_is_no_evidence_of_an_object():
@@ -647,9 +649,9 @@ def test_a_letterbox_edge_is_no_evidence_of_an_object():
     rng = np.random.default_rng(8)
     frame = _letterboxed(rng)
     frame[20:100] = 140  # a flat picture: only the bar's edges are edges
-    area = observe.picture_area(frame)
+    area = appearance.picture_area(frame)
     fimg = measure.feature_image(frame)
-    clean = observe.without_bars(fimg, area)
+    clean = appearance.without_bars(fimg, area)
     np.testing.assert_array_equal(clean[40:80], fimg[40:80])  # the picture itself is unchanged
     assert np.abs(np.diff(clean[:40], axis=0)).max() < 0.1  # no step across the bar's edge (8 is a feature)
     t = np.linspace(0, 2 * np.pi, 24, endpoint=False)
@@ -659,7 +661,7 @@ def test_a_letterbox_edge_is_no_evidence_of_an_object():
     counted = [observe.normals_with_features(f, pts, nrm, h=10, threshold=8.0, sign=0) for f in (fimg, clean)]
     assert counted[0] >= 8 and counted[1] == 0
     cmap = np.ones(fimg.shape, np.float32)
-    observe.clear_bars(cmap, area)
+    appearance.clear_bars(cmap, area)
     assert cmap[:20].max() == 0 and cmap[100:].max() == 0 and cmap[20:100].min() == 1
 
 
@@ -763,13 +765,13 @@ def test_colour_peaks_in_a_window_leave_out_stronger_regions_beyond_it():
     cmap = np.zeros((240, 320), np.float32)
     cv2.circle(cmap, (260, 60), 14, 3.0, -1)  # a look-alike, strongly object-coloured
     cv2.circle(cmap, (80, 160), 14, 1.0, -1)  # the object, weaker
-    everywhere, _ = observe.colour_peaks(cmap, 28.0)
+    everywhere, _ = reacquire.colour_peaks(cmap, 28.0)
     np.testing.assert_allclose(everywhere[0], (260, 60), atol=4)
-    near, strengths = observe.colour_peaks(cmap, 28.0, window=(20.0, 100.0, 140.0, 220.0))
+    near, strengths = reacquire.colour_peaks(cmap, 28.0, window=(20.0, 100.0, 140.0, 220.0))
     assert len(near) >= 1 and strengths[0] > 0.5
     np.testing.assert_allclose(near[0], (80, 160), atol=4)
     assert np.all((near[:, 0] <= 140) & (near[:, 1] >= 100))
-    assert len(observe.colour_peaks(cmap, 28.0, window=(0.0, 0.0, 40.0, 40.0))[0]) == 0
+    assert len(reacquire.colour_peaks(cmap, 28.0, window=(0.0, 0.0, 40.0, 40.0))[0]) == 0
 
 
 def test_reacquisition_in_a_window_puts_the_priors_uniform_part_on_the_window_only():
@@ -785,7 +787,7 @@ def test_reacquisition_in_a_window_puts_the_priors_uniform_part_on_the_window_on
     window = (200.0, 150.0, 330.0, 260.0)  # beyond the frame's right and bottom edges (W, H = 320, 240)
     runs = {}
     for name, win in (("frame", None), ("window", window)):
-        propose = observe.reacquisition_proposal(centres, np.array([1.0, 1.0]), origin, size, (W, H),
+        propose = reacquire.reacquisition_proposal(centres, np.array([1.0, 1.0]), origin, size, (W, H),
                                                  fraction=0.4, reappear=0.1, window=win)
         runs[name] = propose(prior - 1.0, prior, np.random.default_rng(8))
     out = runs["frame"][1]
@@ -806,7 +808,7 @@ def test_colour_peaks_read_nothing_beyond_the_frame_edge():
     cmap = np.zeros((240, 320), np.float32)
     cmap[-4:, :] = 3.0  # a 4-px line along the bottom edge
     cv2.circle(cmap, (160, 100), 14, 1.0, -1)  # the object, 28 px across
-    centres, strengths = observe.colour_peaks(cmap, 28.0)
+    centres, strengths = reacquire.colour_peaks(cmap, 28.0)
     assert len(centres) >= 1
     np.testing.assert_allclose(centres[0], (160, 100), atol=4)
     # the line is a weak candidate at most: its 4 rows over an object-sized box

@@ -227,9 +227,11 @@ def test_inspect_shows_the_placed_model(model_files):
 
 
 def test_inspect_with_a_template_of_another_curve_is_a_one_line_error(model_files, tmp_path):
+    """An open template on a closed model's curve cannot be placed (a closed one of any number
+    of control points can: only its centroid and area are read)."""
     d = model_files
     pts = _template(1.5).control_points[:8]
-    save_template(tmp_path / "eight.yaml", Template(pts, degree=2, closed=True, frame_size=(480, 360)))
+    save_template(tmp_path / "eight.yaml", Template(pts, degree=2, closed=False, frame_size=(480, 360)))
     out = CliRunner().invoke(cli, ["inspect", str(d / "m.yaml"), "--template", str(tmp_path / "eight.yaml")])
     assert out.exit_code == 4
     assert out.output.startswith("Error: ") and "--n-ctrl" in out.output and out.output.count("\n") == 1
@@ -241,3 +243,21 @@ def test_check_placed_rejects_an_unstable_placement_of_a_stable_model():
     np.fill_diagonal(A1, 1.05)
     with pytest.raises(AssertionError, match="spectral radius"):
         check_placed(stable, AR2(np.zeros((4, 4)), A1, np.eye(4), np.zeros(4), TAU))
+
+
+def test_a_closed_template_of_other_control_points_is_placed_by_its_centroid_and_area(model_files, tmp_path):
+    from trackcli.dynamics.model import load_model
+    from trackcli.shapes.fit import fit
+    from trackcli.shapes.spline import dense_polygon
+
+    model = load_model(model_files / "m.yaml")
+    t = _template(1.5)
+    m = 2 * t.n_ctrl  # the same curve with twice the control points
+    Qf = fit(dense_polygon(t.Q, t.basis(), 400), m, degree=2, closed=True)
+    finer = Template(np.column_stack([Qf[:m], Qf[m:]]), degree=2, closed=True, frame_size=(480, 360))
+    placed, X0 = place_space(model.space, finer)
+    Q = placed.to_control(X0)
+    area, centre = curve_area_centroid(Q, placed.basis)
+    area_t, centre_t = curve_area_centroid(finer.Q, finer.basis())
+    np.testing.assert_allclose(centre, centre_t, atol=0.5)
+    assert abs(area) == pytest.approx(abs(area_t), rel=0.02)

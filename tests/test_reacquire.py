@@ -129,7 +129,7 @@ def test_finds_the_object_again_when_it_comes_back(track_rows):
 
 def test_finds_the_object_again_when_it_comes_back_larger(nearer_rows):
     """Back 1.6 times larger: the re-acquisition's samples try other scales too
-    (``condensation.reacquire_scale``; with the template's scale only, three seeds of six
+    (``reacquire.scale``; with the template's scale only, three seeds of six
     stayed on a smaller outline, 20 px off and flagged lost)."""
     back = [r for r in nearer_rows if int(r["frame"]) >= HIDDEN.stop + 10]
     assert max(_err(r) for r in back) < 6
@@ -164,7 +164,7 @@ def test_reacquisition_starts_after_enough_lost_frames_in_a_row_or_in_a_flickeri
 
 
 def test_a_place_found_after_a_loss_is_judged_against_a_stricter_centre(clip, track_rows, tmp_path):
-    """While the tracker recovers from a loss (lost on ``reacquire_after`` = 3 of the last 5
+    """While the tracker recovers from a loss (lost on ``reacquire.after`` = 3 of the last 5
     frames), the confidence is 0.5 at ``measurement.reacquired_centre`` (0.5) of the template's
     score instead of ``presence_centre`` (0.3); on every other frame nothing changes.  Tracked
     again with the two centres equal, the same seed gives the same samples as long as the
@@ -224,10 +224,10 @@ def lookalike_rows(lookalike_clip):
 
 def test_a_look_alike_across_the_frame_is_not_taken_for_the_object_hidden_a_moment(lookalike_rows):
     """While lost, the object is looked for near where it was last held, in a square that grows
-    with the time lost (``condensation.reacquire_speed``): the look-alike 280 px away is out of
+    with the time lost (``reacquire.speed``): the look-alike 280 px away is out of
     reach for the 0.6 s the object is hidden, so the tracker stays lost instead of holding the
     look-alike, and finds the object when it shows again.  (Searching the whole frame at once,
-    ``reacquire_speed: 0``, it held the look-alike from the fourth hidden frame to the end.)"""
+    ``reacquire.speed: 0``, it held the look-alike from the fourth hidden frame to the end.)"""
     def err(row, c):
         return float(np.hypot(float(row["cx"]) - c[0], float(row["cy"]) - c[1]))
 
@@ -241,12 +241,12 @@ def test_a_look_alike_across_the_frame_is_not_taken_for_the_object_hidden_a_mome
 
 def test_a_look_alike_that_stood_there_on_the_first_frame_is_not_held_even_when_searched_for(
         lookalike_clip, tmp_path):
-    """Searching the whole frame at once (``reacquire_speed: 0``) the samples reach the
+    """Searching the whole frame at once (``reacquire.speed: 0``) the samples reach the
     look-alike while the object is hidden.  It stands where it stood on the first frame, and
     the pixels just inside a curve about it are the first frame's
     (:class:`~trackcli.observe.scene.StillScene`): the tracker stays lost instead of holding
     it, and follows the object when it shows again."""
-    rows = track(lookalike_clip, tmp_path, brief_centre(0), config="condensation:\n  reacquire_speed: 0\n")
+    rows = track(lookalike_clip, tmp_path, brief_centre(0), config="reacquire:\n  speed: 0\n")
 
     def err(row, c):
         return float(np.hypot(float(row["cx"]) - c[0], float(row["cy"]) - c[1]))

@@ -572,13 +572,18 @@ def test_pandas_is_imported_by_a_recording_only_where_the_check_is_kept(tmp_path
 
 
 @pytest.mark.parametrize("frames_mode", ["auto", "jpeg"])
-def test_track_keeps_the_source_jpeg_frames_unless_asked_to_encode(tmp_path, ellipse_clip, frames_mode):
-    """Under ``output.frames: auto`` the recording of an MJPG clip holds each frame's stored JPEG
-    byte for byte (no encoding again); ``jpeg`` encodes every frame at ``jpeg_quality``."""
+def test_track_keeps_the_source_jpeg_frames_unless_asked_to_encode(tmp_path, ellipse_clip, frames_mode,
+                                                                    monkeypatch):
+    """Under ``output.frames: auto`` without an AV1 encoder, the recording of an MJPG clip holds
+    each frame's stored JPEG byte for byte (no encoding again); ``jpeg`` encodes every frame at
+    ``jpeg_quality``."""
     from click.testing import CliRunner
 
     from trackcli.cli import cli
+    from trackcli.io import encode
     from trackcli.io.video import open_video
+
+    monkeypatch.setattr(encode, "encoder_available", lambda name: False)
 
     template, out = tmp_path / "t.yaml", tmp_path / "out"
     config = tmp_path / "c.yaml"

@@ -58,18 +58,27 @@ def _queries(view) -> list[str]:
 # How frames are stored
 
 
-@pytest.mark.parametrize(("mode", "codec", "embeddable", "whole", "expected"), [
-    ("auto", "vp09", True, True, "jpeg"),   # the native viewer cannot play VP9
-    ("auto", "avc1", True, True, "jpeg"),   # H.264 needs FFmpeg beside the native viewer
-    ("auto", "av01", True, True, "asset"),  # AV1 is decoded by every viewer
-    ("auto", "av01", True, False, "jpeg"),  # a selection: only its frames go in
-    ("asset", "vp09", True, True, "asset"),
-    ("asset", "vp09", True, False, "jpeg"),
-    ("asset", "mp4v", False, True, "jpeg"),
-    ("jpeg", "av01", True, True, "jpeg"),
+@pytest.mark.parametrize(("mode", "codec", "embeddable", "whole", "av1", "expected"), [
+    ("auto", "vp09", True, True, True, "av1"),     # the native viewer cannot play VP9: encoded as AV1
+    ("auto", "vp09", True, True, False, "jpeg"),   # ... or JPEG without the AV1 encoder
+    ("auto", "avc1", True, True, False, "jpeg"),   # H.264 needs FFmpeg beside the native viewer
+    ("auto", "", False, True, True, "av1"),        # an image folder
+    ("auto", "", False, True, False, "jpeg"),
+    ("auto", "av01", True, True, True, "asset"),   # AV1 is decoded by every viewer: embedded as it is
+    ("auto", "av01", True, True, False, "asset"),
+    ("auto", "av01", True, False, True, "av1"),    # a selection: only its frames go in
+    ("auto", "av01", True, False, False, "jpeg"),
+    ("av1", "av01", True, True, True, "av1"),
+    ("av1", "", False, True, False, "jpeg"),
+    ("asset", "vp09", True, True, False, "asset"),
+    ("asset", "vp09", True, False, True, "av1"),
+    ("asset", "vp09", True, False, False, "jpeg"),
+    ("asset", "mp4v", False, True, False, "jpeg"),
+    ("jpeg", "av01", True, True, True, "jpeg"),
+    ("jpeg", "", False, True, True, "jpeg"),
 ])
-def test_frame_storage_choice(mode, codec, embeddable, whole, expected):
-    storage, reason = frame_storage(mode, codec=codec, embeddable=embeddable, whole_clip=whole)
+def test_frame_storage_choice(mode, codec, embeddable, whole, av1, expected):
+    storage, reason = frame_storage(mode, codec=codec, embeddable=embeddable, whole_clip=whole, av1=av1)
     assert storage == expected and reason
 
 
@@ -90,23 +99,29 @@ def _write_vp9(path, n=4, size=(64, 48)):
     return True
 
 
-def test_sample_clip_is_stored_as_jpeg_and_only_the_selected_frames(tmp_path):
+def test_sample_clip_is_stored_as_av1_and_only_the_selected_frames(tmp_path):
     clip = sample_clip("test")
     tmpl = tmp_path / "head.yaml"
     run(["draw", clip, "--box", "166,104,131,153", "-o", tmpl], 0)
     run(["track", clip, "--template", tmpl, "--tracker", "kalman", "--end", "5", "-o", tmp_path], 0)
     rrd = tmp_path / "test.kalman.rrd"
     assert ru.count_rows(rrd, "video", "AssetVideo:blob") == 0
-    assert ru.read_index(rrd, "video", "EncodedImage:blob") == [0, 1, 2, 3, 4]
-    # asked for an asset: a selection is still stored as its own JPEG frames, not the whole clip
+    assert ru.read_index(rrd, "video", "VideoStream:sample") == [0, 1, 2, 3, 4]
+    # asked for an asset: a selection is still stored as its own frames, not the whole clip
     cfg = tmp_path / "asset.yaml"
     cfg.write_text("output: {frames: asset}\n")
     run(["track", clip, "--template", tmpl, "--tracker", "kalman", "--start", "2", "--end", "5", "-c", cfg,
          "-o", tmp_path / "sel"], 0)
     rrd = tmp_path / "sel" / "test.kalman.rrd"
     assert ru.count_rows(rrd, "video", "AssetVideo:blob") == 0
-    assert ru.read_index(rrd, "video", "EncodedImage:blob") == [2, 3, 4]
+    assert ru.read_index(rrd, "video", "VideoStream:sample") == [2, 3, 4]
     assert rrd.stat().st_size < clip.stat().st_size
+    # asked for JPEG: JPEG frames
+    cfg.write_text("output: {frames: jpeg}\n")
+    run(["track", clip, "--template", tmpl, "--tracker", "kalman", "--end", "3", "-c", cfg, "-o", tmp_path / "j"], 0)
+    rrd = tmp_path / "j" / "test.kalman.rrd"
+    assert ru.read_index(rrd, "video", "EncodedImage:blob") == [0, 1, 2]
+    assert ru.count_rows(rrd, "video", "VideoStream:sample") == 0
 
 
 def test_asset_on_request_for_a_whole_vp9_clip(tmp_path):
@@ -157,9 +172,9 @@ def test_series_sent_in_chunks_hold_every_frame_once(tmp_path, ellipse_clip, mon
     import csv
 
     from trackcli.settings import Settings
-    from trackcli.run import clips
+    from trackcli.run import sinks
 
-    monkeypatch.setattr(clips, "SERIES_CHUNK", 4)
+    monkeypatch.setattr(sinks, "SERIES_CHUNK", 4)
     tmpl = tmp_path / "e.yaml"
     run(["draw", ellipse_clip, "--ellipse", "70,60,28,36", "-o", tmpl], 0)
     run(["track", ellipse_clip, "--template", tmpl, "--particles", "50", "-o", tmp_path], 0)

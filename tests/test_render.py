@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+
 import cv2
 import numpy as np
 import pytest
@@ -101,9 +103,50 @@ def test_every_video_ending_offered_is_written_and_reads_back(tmp_path, tracked,
     """The endings render accepts each get a codec this OpenCV writes in that container."""
     out = tmp_path / f"overlay{suffix}"
     result = run(["render", tracked, ellipse_clip, "--end", "2", "-o", out], 0)
-    assert f"video ({SUFFIX_CODECS[suffix][0]})" in result.stdout
+    codec = "h264" if suffix == ".mp4" else SUFFIX_CODECS[suffix][0]  # an MP4 is H.264 through PyAV
+    assert f"video ({codec})" in result.stdout
     frames = clip_frames(out)
     assert len(frames) == 2 and frames[0].shape == (CLIP_SIZE[1], CLIP_SIZE[0], 3)  # --end is exclusive
+
+
+def test_mp4_is_h264_that_plays_everywhere(tmp_path, tracked, ellipse_clip):
+    """H.264 High profile, 4:2:0, the index before the data (a browser plays it while it loads),
+    the frames as drawn; an odd frame size is padded to even sides."""
+    av = pytest.importorskip("av")
+    out = tmp_path / "overlay.mp4"
+    run(["render", tracked, ellipse_clip, "-o", out, "--no-label"], 0)
+    with av.open(str(out)) as container:
+        stream = container.streams.video[0]
+        assert stream.codec_context.name == "h264"
+        assert stream.codec_context.pix_fmt == "yuv420p"
+        assert stream.codec_context.profile == "High"
+        assert (stream.codec_context.width, stream.codec_context.height) == CLIP_SIZE
+        assert stream.frames == CLIP_FRAMES
+    data = out.read_bytes()
+    assert data.index(b"moov") < data.index(b"mdat")
+    drawn = sorted((tmp_path / "png").glob("*.png")) if run(
+        ["render", tracked, ellipse_clip, "--png", "--no-label", "-o", tmp_path / "png"], 0) else []
+    for frame, png in zip(clip_frames(out), drawn, strict=True):
+        assert cv2.PSNR(frame, cv2.imread(str(png))) > 28
+    from trackcli.io.encode import H264Writer
+
+    odd = tmp_path / "odd.mp4"
+    writer = H264Writer(odd, 25.0, (101, 77))
+    for k in range(3):
+        writer.write(np.full((77, 101, 3), 40 * k, np.uint8))
+    writer.close(True)
+    with av.open(str(odd)) as container:
+        assert (container.streams.video[0].width, container.streams.video[0].height) == (102, 78)
+
+
+def test_mp4_without_pyav_falls_back_to_opencv(tmp_path, tracked, ellipse_clip, monkeypatch, caplog):
+    from trackcli.io import encode
+
+    monkeypatch.setattr(encode, "encoder_available", lambda name: False)
+    with caplog.at_level(logging.WARNING, logger="trackcli"):  # another test's -q may have raised its level
+        result = run(["render", tracked, ellipse_clip, "--end", "2", "-o", tmp_path / "o.mp4"], 0)
+    assert "video (vp09)" in result.stdout or "video (mp4v)" in result.stdout
+    assert "libx264" in caplog.text and len(clip_frames(tmp_path / "o.mp4")) == 2
 
 
 def test_contact_sheet(tmp_path, tracked, ellipse_clip):

@@ -6,7 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from trackcli.observe.scene import StillScene, in_first_light
+from trackcli.observe.appearance import in_first_light
+from trackcli.observe.scene import StillScene
 
 
 def textured(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:

@@ -62,7 +62,7 @@ def work(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def template(clip, work) -> Path:
     out = work / "head.yaml"
-    run(["draw", clip, "--box", BOX, "-o", out])
+    run(["draw", clip, "--box", BOX, "--n-ctrl", "12", "-o", out])  # the book's 12-point head
     return out
 
 
@@ -109,7 +109,8 @@ def test_condensation_smoothing_lowers_the_centre_error_on_the_training_clip(cli
     import yaml
 
     settings = yaml.safe_load((SAMPLE_DATA.parent / "configs" / "sample-clutter.yaml").read_text(encoding="utf-8"))
-    settings["condensation"].update({"jump_fraction": 0.0, "reacquire": False, "likelihood": "clutter"})
+    settings.update({"jumps": {"fraction": 0.0}, "reacquire": {"enabled": False}})
+    settings["observation"]["likelihood"] = "clutter"
     config = work / "clutter-ar2.yaml"
     config.write_text(yaml.safe_dump(settings), encoding="utf-8")
     model = mle_model

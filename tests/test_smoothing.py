@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from statsmodels.tsa.statespace.mlemodel import MLEModel
 
-from trackcli.trackers import kalman
+from trackcli.dynamics import kalman
 from trackcli.dynamics.ar2 import AR2
-from trackcli.trackers.smoothing import filter_information, rts_smooth, smooth_filtered
+from trackcli.dynamics.rts import filter_information, rts_smooth, smooth_filtered
 
 
 def _oscillator(nx: int = 2) -> AR2:

@@ -1,4 +1,4 @@
-"""Tests for trackcli.shapes.spline: basis, evaluation, normals, metric, fitting."""
+"""Tests for trackcli.shapes.spline (basis, evaluation, normals, metric) and trackcli.shapes.fit."""
 
 from __future__ import annotations
 
@@ -8,13 +8,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from trackcli.errors import ConfigError, DataError
+from trackcli.shapes.fit import fit
 from trackcli.shapes.spline import (
     CurveSampler,
     SplineBasis,
     curve_area_centroid,
     curve_centre,
     dense_polygon,
-    fit,
     polygon_area_centroid,
     signed_area,
 )
@@ -433,7 +433,8 @@ def _pixel_outline_of_ellipse(cx, cy, a, b, angle=0.0):
     """The pixel boundary of a filled ellipse, as a segmentation mask gives it."""
     import cv2
 
-    from trackcli.shapes.draw import canonical_start, mask_outline
+    from trackcli.shapes.draw import canonical_start
+    from trackcli.segment.masks import mask_outline
 
     m = np.zeros((int(cy + b + a + 20), int(cx + a + b + 20)), np.uint8)
     cv2.ellipse(m, ((cx, cy), (2 * a, 2 * b), angle), 255, -1)

@@ -26,7 +26,7 @@ import pytest
 from click.testing import CliRunner
 
 from conftest import CONFIGS, SAMPLE_DATA, sample_clip
-from trackcli.observe import measure
+from trackcli.observe import likelihoods, measure
 from trackcli.cli import cli
 from trackcli.settings import load_settings
 from trackcli.dynamics.ar2 import AR2
@@ -116,15 +116,15 @@ def test_truncated_likelihood_is_the_papers_mean_of_clipped_squares():
     fimg = measure.feature_image(img, sigma=0.0, edge_sigma=1.0)
     pts = np.array([[37.5, 30.0], [41.5, 20.0], [20.0, 30.0]])  # nu = +2, -2, none within h
     nrm = np.tile([1.0, 0.0], (3, 1))
-    got = measure.truncated_log_likelihood(fimg, pts, nrm, h=5.0, sigma=2.0, threshold=8.0,
+    got = likelihoods.truncated_log_likelihood(fimg, pts, nrm, h=5.0, sigma=2.0, threshold=8.0,
                                            polarity="dark_to_light")
     assert got == pytest.approx(-(4.0 + 4.0 + 25.0) / 3 / (2 * 2.0**2), abs=1e-3)
     # the wrong polarity finds nothing: every normal pays the penalty h²
-    none = measure.truncated_log_likelihood(fimg, pts, nrm, h=5.0, sigma=2.0, threshold=8.0,
+    none = likelihoods.truncated_log_likelihood(fimg, pts, nrm, h=5.0, sigma=2.0, threshold=8.0,
                                             polarity="light_to_dark")
     assert none == pytest.approx(-25.0 / (2 * 2.0**2))
     # several curves at once, as CONDENSATION calls it: shape (N,)
-    many = measure.truncated_log_likelihood(fimg, np.stack([pts, pts + [2.0, 0.0]]), np.stack([nrm, nrm]),
+    many = likelihoods.truncated_log_likelihood(fimg, np.stack([pts, pts + [2.0, 0.0]]), np.stack([nrm, nrm]),
                                             h=5.0, sigma=2.0, threshold=8.0)
     assert many.shape == (2,) and many[0] == pytest.approx(got, abs=1e-3)
 
@@ -135,10 +135,10 @@ def test_a_clutter_feature_beside_the_nearest_one_adds_nothing_to_the_truncated_
     with_line = img.copy()
     with_line[:, 52:54] = 40.0  # a thin dark line 12 px outside the edge, inside the search
     pts, nrm = np.array([[39.5, 20.0]]), np.array([[1.0, 0.0]])
-    scores = [measure.truncated_log_likelihood(measure.feature_image(im), pts, nrm, h=15.0, sigma=2.0,
+    scores = [likelihoods.truncated_log_likelihood(measure.feature_image(im), pts, nrm, h=15.0, sigma=2.0,
                                                threshold=8.0) for im in (img, with_line)]
     assert scores[0] == pytest.approx(scores[1], abs=1e-6)
-    clutter = [measure.log_likelihood(measure.feature_image(im), pts, nrm, h=15.0, sigma=6.0, alpha=0.02,
+    clutter = [likelihoods.log_likelihood(measure.feature_image(im), pts, nrm, h=15.0, sigma=6.0, alpha=0.02,
                                       threshold=8.0) for im in (img, with_line)]
     assert clutter[1] > clutter[0]  # AC eq 12.2 counts every feature on the normal
 
@@ -153,10 +153,11 @@ def clutter_runs(tmp_path_factory):
     for name in ("train", "test"):
         sample_clip(name)
     d = tmp_path_factory.mktemp("clutter")
-    run(["draw", SAMPLE_DATA / "train.mp4", "--box", TRAIN_BOX, "-o", d / "head.yaml"])
+    # the head of the papers' experiments: 12 control points, as the book draws it
+    run(["draw", SAMPLE_DATA / "train.mp4", "--box", TRAIN_BOX, "--n-ctrl", "12", "-o", d / "head.yaml"])
     run(["learn", "-c", CLUTTER, "--template", d / "head.yaml", SAMPLE_DATA / "train.mp4",
          "-o", d / "model.yaml", "--no-rrd"])
-    run(["draw", SAMPLE_DATA / "test.mp4", "--box", TEST_BOX, "-o", d / "head-test.yaml"])
+    run(["draw", SAMPLE_DATA / "test.mp4", "--box", TEST_BOX, "--n-ctrl", "12", "-o", d / "head-test.yaml"])
     for tracker in ("condensation", "kalman"):
         run(["track", "-c", CLUTTER, "--tracker", tracker, "--model", d / "model.yaml",
              "--template", d / "head-test.yaml", SAMPLE_DATA / "test.mp4", "-o", d, "--seed", 0, "--no-rrd"])
@@ -306,8 +307,7 @@ def three_heads_histograms(clutter_runs):
     with open_video(SAMPLE_DATA / "three_heads.mp4") as video:
         setup = tracking_setup(None, clutter_runs / "head.yaml", settings, video)
         results = list(track_condensation(video, setup.space, setup.dynamics, settings.measurement,
-                                          settings.condensation, np.random.default_rng(settings.seed),
-                                          X0=setup.X0))
+                                          settings, np.random.default_rng(settings.seed), X0=setup.X0))
     edges = results[0].display["hist_edges"] + setup.space.origin[0]
     return np.array([r.display["histogram"] for r in results]), 0.5 * (edges[1:] + edges[:-1])
 
@@ -350,7 +350,7 @@ def test_three_heads_histogram_has_a_peak_at_each_head(three_heads_histograms):
 
 def test_the_three_heads_motion_model_spreads_its_steady_state_over_the_frame(clutter_runs):
     settings = load_settings(THREE_HEADS)
-    assert settings.condensation.init == "steady_state" and settings.condensation.likelihood == "truncated"
+    assert settings.condensation.init == "steady_state" and settings.observation.likelihood == "truncated"
     with open_video(SAMPLE_DATA / "three_heads.mp4") as video:
         setup = tracking_setup(None, clutter_runs / "head.yaml", settings, video)
         width = video.width

@@ -9,11 +9,18 @@ dotted key path and the reason, e.g.::
 
 Command-line options override file values through :func:`load_settings` ``overrides`` (a
 mapping of dotted keys to values), validated by the same rules.
+
+Settings that moved to another section (:data:`MOVED`: the observation model, re-acquisition
+and jumps were keys of ``condensation`` before they had sections of their own) are still read
+under their old names, in a file, an override or a model's stored settings: the value goes to
+the new key, and a file or an override is told so in a one-line warning naming the new key.
+A file that gives both the old and the new name of one setting is refused.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,6 +31,8 @@ import yaml
 from trackcli.errors import ConfigError, short_repr
 
 FORMAT = 1
+
+log = logging.getLogger(__name__)
 
 # ---------------------------------------------------------------------------------------------
 # Field specifications
@@ -121,7 +130,7 @@ class MeasurementSettings:
     threshold: float = _f(8.0, "float", "contrast threshold, grey levels per px", lo=0)
     polarity: str = _f("any", "str", "edge polarity accepted, relative to the outward normal (the discriminant learns it per normal instead)", choices=("any", "light_to_dark", "dark_to_light"))
     presence_centre: float = _f(0.3, "float", "fraction of the template's presence score on the first frame (evidence per normal, trackcli.observe.discriminant) at which the confidence is 0.5", lo=0, hi=1)
-    reacquired_centre: float = _f(0.5, "float", "presence_centre while the tracker is recovering from a loss (CONDENSATION lost on condensation.reacquire_after of the last frames): a place found after a loss needs more evidence than one followed from frame to frame; a value below presence_centre counts as presence_centre", lo=0, hi=1)
+    reacquired_centre: float = _f(0.5, "float", "presence_centre while the tracker is recovering from a loss (lost on reacquire.after of the last frames): a place found after a loss needs more evidence than one followed from frame to frame; a value below presence_centre counts as presence_centre", lo=0, hi=1)
     lost_below: float = _f(0.5, "float", "a frame is reported lost when its confidence is below this", lo=0, hi=1)
 
 
@@ -164,30 +173,42 @@ class CondensationSettings:
     schedule_frames: int = _f(4, "int", "frames over which N falls from initial_particles to particles", lo=1)
     resampling: str = _f("multinomial", "str", "selection scheme", choices=("multinomial", "systematic", "stratified"))
     ess_threshold: float | None = _f(None, "float", "resample only when ESS/N falls below this ratio; null = every frame", lo=0, lo_open=True, hi=1, nullable=True)
-    likelihood: str = _f("discriminant", "str", "observation model: discriminant (edges and colour learned on the first frame, trackcli.observe.discriminant), clutter (AC eq 12.2) or truncated (Isard & Blake 1996 eqs 10-11)", choices=("discriminant", "clutter", "truncated"))
-    miss_probability: float = _f(0.1, "float", "discriminant: probability q that the boundary is not detected on a normal", lo=0, lo_open=True, hi=1)
-    colour_weight: float = _f(3.0, "float", "discriminant: weight w_c of the colour term against the edge term", lo=0, hi=100)
-    still_weight: float = _f(1.0, "float", "discriminant: a curve on pixels that kept their colour since the first frame (a look-alike standing in the scene, with a still camera) loses this many times the template's own score on its first frame, in proportion to its stillness; 0: off (frames are still compared with the first, to read the colour model in the first frame's light when the light over the whole scene changes)", lo=0, hi=10)
-    discriminant_power: float = _f(0.5, "float", "discriminant: exponent on its likelihood in the samples' weights (tempering): the discriminant takes its normals as independent evidence, which they are not, and its posterior is narrower than the estimate's real error (on the dev clips by about four times); below 1 the motion prior and the re-acquisition's importance weights keep their say against a look-alike that scores a little higher; 1: the likelihood as it is", lo=0, lo_open=True, hi=1)
-    reacquire: bool = _f(True, "bool", "when lost, draw a share of the samples from the colour map of the frame near where the object was last held (reacquire_speed; importance sampling)")
-    reacquire_after: int = _f(3, "int", "the colour proposal is used once the tracker was lost on this many of the last 2*reacquire_after-1 frames: that many in a row, or a verdict going back and forth between lost and held (a shorter dip, e.g. the object brushing the frame's edge, is left to the motion model)", lo=1, hi=1000)
-    reacquire_fraction: float = _f(0.25, "float", "share of the samples drawn from the colour proposal while lost", lo=0, lo_open=True, hi=1)
-    reacquire_speed: float = _f(2.0, "float", "while lost, the object is looked for within a square about where it was last held, of half-width 2 object sizes growing by this many object sizes per second lost, or by twice the fastest the object was seen to move if that is more (an object hidden or turned away is still near where it was; a look-alike across the frame is not it); 0: anywhere in the frame at once", lo=0)
-    reacquire_scale: float = _f(2.0, "float", "the samples drawn from the colour proposal also take a scale log-uniform within [1/s, s] of the template's (the object may be found again nearer or farther than it was lost); 1: the template's scale only", lo=1, hi=10)
-    reacquire_scale_reference: float = _f(1.0, "float", "reacquire_scale is used only when the template's presence score on its first frame (evidence per normal) is at least this: where the template is barely more object-like than clutter, other scales find clutter as readily as the object")
-    jump_fraction: float = _f(0.1, "float", "share of the samples given a jump: an impulse that moves the predicted position and changes the velocity by the same amount (the motion prior is a mixture of smooth motion and abrupt moves: kicks, turns, camera shake)", lo=0, hi=1)
-    jump_size: float = _f(0.3, "float", "RMS size of such a jump, in object sizes (square root of the template's area)", lo=0, hi=10)
-    jump_brake: float = _f(0.02, "float", "share of the samples given a braking jump (besides the jumps of jump_fraction): the velocity v changes by -u*v, u uniform in [0, 2] (slowing, stopping, turning back: a bounce), plus 0.3 of jump_size at random", lo=0, hi=1)
-    search: float = _f(20.0, "float", "fixed search half-width h along each normal, px (truncated: also the penalty h^2)", lo=1, hi=200)
-    sigma: float = _f(3.0, "float", "feature position noise sigma, px", lo=0, lo_open=True)
-    alpha: float = _f(0.02, "float", "clutter density alpha, features per px (clutter model only)", lo=0, lo_open=True)
     init: str = _f("template", "str", "initial sample set", choices=("template", "steady_state"))
     init_translation: float = _f(10.0, "float", "initial spread of translation around the template, px (init: template)", lo=0)
     init_deformation: float = _f(0.02, "float", "initial spread of the other shape components (init: template)", lo=0)
     init_speed: float = _f(0.0, "float", "initial spread of translational velocity, px/frame, for an object already moving on the first frame (init: template)", lo=0)
     histogram_bins: int = _f(64, "int", "bins of the horizontal-translation histogram", lo=2, hi=4096)
-    display_particles: int = _f(60, "int", "particle contours drawn per frame in the recording", lo=0, hi=10000)
+    display_particles: int = _f(10, "int", "particle contours drawn per frame in the recording", lo=0, hi=10000)
     threads: int = _f(0, "int", "threads that score the samples (0 = every core from 300 samples up with the discriminant, 2000 with the numpy models, one below); the results do not depend on it", lo=0, hi=256)
+
+
+@dataclass(frozen=True)
+class ObservationSettings:
+    likelihood: str = _f("discriminant", "str", "observation model: discriminant (edges and colour learned on the first frame, trackcli.observe.discriminant), clutter (AC eq 12.2) or truncated (Isard & Blake 1996 eqs 10-11)", choices=("discriminant", "clutter", "truncated"))
+    miss_probability: float = _f(0.1, "float", "discriminant: probability q that the boundary is not detected on a normal", lo=0, lo_open=True, hi=1)
+    colour_weight: float = _f(3.0, "float", "discriminant: weight w_c of the colour term against the edge term", lo=0, hi=100)
+    still_weight: float = _f(1.0, "float", "discriminant: a curve on pixels that kept their colour since the first frame (a look-alike standing in the scene, with a still camera) loses this many times the template's own score on its first frame, in proportion to its stillness; 0: off (frames are still compared with the first, to read the colour model in the first frame's light when the light over the whole scene changes)", lo=0, hi=10)
+    discriminant_power: float = _f(0.5, "float", "discriminant: exponent on its likelihood in CONDENSATION's sample weights (tempering): the discriminant takes its normals as independent evidence, which they are not, and its posterior is narrower than the estimate's real error (on the dev clips by about four times); below 1 the motion prior and the re-acquisition's importance weights keep their say against a look-alike that scores a little higher; 1: the likelihood as it is", lo=0, lo_open=True, hi=1)
+    search: float = _f(20.0, "float", "fixed search half-width h along each normal, px (truncated: also the penalty h^2)", lo=1, hi=200)
+    sigma: float = _f(3.0, "float", "feature position noise sigma, px", lo=0, lo_open=True)
+    alpha: float = _f(0.02, "float", "clutter density alpha, features per px (clutter model only)", lo=0, lo_open=True)
+
+
+@dataclass(frozen=True)
+class ReacquireSettings:
+    enabled: bool = _f(True, "bool", "when lost, draw a share of the samples from the colour map of the frame near where the object was last held (see speed; importance sampling)")
+    after: int = _f(3, "int", "the colour proposal is used once the tracker was lost on this many of the last 2*after-1 frames: that many in a row, or a verdict going back and forth between lost and held (a shorter dip, e.g. the object brushing the frame's edge, is left to the motion model)", lo=1, hi=1000)
+    fraction: float = _f(0.25, "float", "share of the samples drawn from the colour proposal while lost", lo=0, lo_open=True, hi=1)
+    speed: float = _f(2.0, "float", "while lost, the object is looked for within a square about where it was last held, of half-width 2 object sizes growing by this many object sizes per second lost, or by twice the fastest the object was seen to move if that is more (an object hidden or turned away is still near where it was; a look-alike across the frame is not it); 0: anywhere in the frame at once", lo=0)
+    scale: float = _f(2.0, "float", "the samples drawn from the colour proposal also take a scale log-uniform within [1/s, s] of the template's (the object may be found again nearer or farther than it was lost); 1: the template's scale only", lo=1, hi=10)
+    scale_reference: float = _f(1.0, "float", "scale is used only when the template's presence score on its first frame (evidence per normal) is at least this: where the template is barely more object-like than clutter, other scales find clutter as readily as the object")
+
+
+@dataclass(frozen=True)
+class JumpSettings:
+    fraction: float = _f(0.1, "float", "share of the samples given a jump: an impulse that moves the predicted position and changes the velocity by the same amount (the motion prior is a mixture of smooth motion and abrupt moves: kicks, turns, camera shake)", lo=0, hi=1)
+    size: float = _f(0.3, "float", "RMS size of such a jump, in object sizes (square root of the template's area)", lo=0, hi=10)
+    brake: float = _f(0.02, "float", "share of the samples given a braking jump (besides the jumps of fraction): the velocity v changes by -u*v, u uniform in [0, 2] (slowing, stopping, turning back: a bounce), plus 0.3 of size at random", lo=0, hi=1)
 
 
 @dataclass(frozen=True)
@@ -241,12 +262,13 @@ class OutlineSettings:
 class OutputSettings:
     rrd: bool = _f(True, "bool", "write a Rerun recording (.rrd)")
     jpeg_quality: int = _f(80, "int", "JPEG quality of frames encoded for recordings (frames kept as their source's JPEG are not encoded again)", lo=10, hi=100)
-    frames: str = _f("auto", "str", "how recordings store frames: jpeg (every frame encoded as JPEG at jpeg_quality, shown by every Rerun viewer), "
-                     "asset (the MP4 clip embedded as a video; the native viewer needs FFmpeg for H.264/H.265 "
-                     "and cannot play VP9), auto (asset only for AV1 clips, which the native viewer decodes by itself; "
-                     "frames that are JPEG at the source, a folder of .jpg images or an MJPG video, kept as they are; else jpeg); "
-                     "a frame selection (--start/--end/--step) is always stored as JPEG",
-                     choices=("auto", "jpeg", "asset"))
+    frames: str = _f("auto", "str", "how recordings store frames: auto (an AV1 MP4 recorded whole embedded as it is; otherwise "
+                     "the frames encoded as AV1 video, which the native Rerun viewer decodes by itself, about 5-6 KB a frame "
+                     "at 854x480; JPEG when PyAV's AV1 encoder is missing or the frames are under 64x64, the source's own "
+                     "JPEGs kept as they are), av1 (always encode AV1), jpeg (every frame encoded as JPEG at jpeg_quality, "
+                     "shown by every Rerun viewer), asset (the MP4 clip embedded as a video; the native viewer needs FFmpeg "
+                     "for H.264/H.265 and cannot play VP9); a frame selection (--start/--end/--step) is never an asset",
+                     choices=("auto", "av1", "jpeg", "asset"))
     outline_points: int = _f(64, "int", "points of the estimated outline written to each row of the track CSV "
                              "(outline_x0, outline_y0, ...); 0 = none, otherwise at least 2", lo=0, hi=1000)
     box: str = _f("drawn", "str", "the box columns of the track CSV (bbox_x, ...): drawn (when the tracker starts at a template "
@@ -276,14 +298,68 @@ class Settings:
     measurement: MeasurementSettings = _section(MeasurementSettings, "features along normals")
     kalman: KalmanSettings = _section(KalmanSettings, "Kalman contour tracker")
     dynamics: DynamicsSettings = _section(DynamicsSettings, "hand-set AR(2) dynamics")
+    observation: ObservationSettings = _section(ObservationSettings, "the observation model: how curves are scored on a frame (CONDENSATION's and mht's weights; every contour tracker's confidence)")
     condensation: CondensationSettings = _section(CondensationSettings, "CONDENSATION")
-    mht: MHTSettings = _section(MHTSettings, "mode-based multiple hypotheses (--tracker mht; observation model and gates from condensation and kalman)")
+    reacquire: ReacquireSettings = _section(ReacquireSettings, "re-acquisition after loss (CONDENSATION's colour proposal; coupled's part votes)")
+    jumps: JumpSettings = _section(JumpSettings, "jumps in the motion prior (CONDENSATION and mht; coupled: fraction and size)")
+    mht: MHTSettings = _section(MHTSettings, "mode-based multiple hypotheses (--tracker mht; gates from kalman)")
     coupled: CoupledSettings = _section(CoupledSettings, "coupled structures (--tracker coupled; 003): a centre and rays to parts matched by normalised cross-correlation")
     placement: PlacementSettings = _section(PlacementSettings, "a learned model tracking a clip (track --model)")
     learning: LearningSettings = _section(LearningSettings, "learning dynamics")
     outline: OutlineSettings = _section(OutlineSettings, "the drawn outline: refined in the full image after each frame's estimate")
     output: OutputSettings = _section(OutputSettings, "outputs")
     em: EMSettings = _section(EMSettings, "learning dynamics by EM (learn --method em)")
+
+
+# ---------------------------------------------------------------------------------------------
+# Settings that moved
+
+#: old dotted key -> the key it moved to (read under the old name with a warning)
+MOVED: dict[str, str] = {
+    **{f"condensation.{k}": f"observation.{k}" for k in ("likelihood", "miss_probability", "colour_weight",
+                                                         "still_weight", "discriminant_power", "search", "sigma",
+                                                         "alpha")},
+    "condensation.reacquire": "reacquire.enabled",
+    **{f"condensation.reacquire_{k}": f"reacquire.{k}" for k in ("after", "fraction", "speed", "scale",
+                                                                 "scale_reference")},
+    **{f"condensation.jump_{k}": f"jumps.{k}" for k in ("fraction", "size", "brake")},
+}
+
+
+def moved_key(dotted: str, where: str = "", *, warn: bool = True) -> str:
+    """The current name of a dotted setting key (``dotted`` itself unless it moved, :data:`MOVED`);
+    a moved key is warned about, ``where`` (e.g. a file's name) leading the message."""
+    new = MOVED.get(dotted)
+    if new is None:
+        return dotted
+    if warn:
+        log.warning("%s%s is now %s: read as that (rename it)", f"{where}: " if where else "", dotted, new)
+    return new
+
+
+def _move_old_keys(data: Any, where: str = "", *, warn: bool = True) -> Any:
+    """A copy of nested settings ``data`` with every moved key (:data:`MOVED`) under its new name.
+
+    A key given under both names is a ConfigError; anything that is not a mapping of sections
+    is left for validation to report.
+    """
+    if not isinstance(data, Mapping):
+        return data
+    out = {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in data.items()}
+    for old, new in MOVED.items():
+        section, key = old.split(".")
+        here = out.get(section)
+        if not isinstance(here, dict) or key not in here:
+            continue
+        new_section, new_key = new.split(".")
+        target = out.setdefault(new_section, {})
+        if not isinstance(target, dict):
+            continue  # validation reports the section that is no mapping
+        if new_key in target:
+            raise ConfigError(f"{old}: moved to {new}, and both are given; keep {new}")
+        target[new_key] = here.pop(key)
+        moved_key(old, where, warn=warn)
+    return out
 
 
 # ---------------------------------------------------------------------------------------------
@@ -321,12 +397,13 @@ def to_dict(settings: Any) -> dict[str, Any]:
 
 
 def set_dotted(data: dict, dotted: str, value: Any, label: str = "") -> None:
-    """Set ``data["a"]["b"]["c"] = value`` for ``dotted = "a.b.c"``, creating sections.
+    """Set ``data["a"]["b"]["c"] = value`` for ``dotted = "a.b.c"``, creating sections; a key
+    that moved (:data:`MOVED`) is set under its new name, with a warning.
 
     A key on the way that holds a single setting is a one-line :class:`ConfigError`
     (prefixed by ``label``, e.g. where the override came from).
     """
-    keys = dotted.split(".")
+    keys = moved_key(dotted, label).split(".")
     node = data
     for i, k in enumerate(keys[:-1]):
         nxt = node.setdefault(k, {})
@@ -425,6 +502,7 @@ def load_settings(path: str | Path | None = None, overrides: Mapping[str, Any] |
             raise ConfigError(f"{path}: {other}, not a configuration; a configuration holds settings "
                               "(see 'trackcli config show')")
     try:
+        data = _move_old_keys(data, str(path) if path is not None else "")
         return _build(Settings, _merge(_deep_copy(data), overrides or {}), "")
     except ConfigError as exc:
         if path is not None:
@@ -433,8 +511,9 @@ def load_settings(path: str | Path | None = None, overrides: Mapping[str, Any] |
 
 
 def settings_from_dict(data: Mapping[str, Any]) -> Settings:
-    """Validate a mapping (e.g. the settings stored in a model file)."""
-    return _build(Settings, dict(data), "")
+    """Validate a mapping (e.g. the settings stored in a model file); keys that moved
+    (:data:`MOVED`, e.g. in a model learned before they moved) are read under their new names."""
+    return _build(Settings, _move_old_keys(dict(data), warn=False), "")
 
 
 def replace(settings: Settings, overrides: Mapping[str, Any]) -> Settings:

@@ -1,3 +1,3 @@
-from trackcli.cli.commands import main
+from trackcli.cli.main import main
 
 main()

@@ -11,17 +11,15 @@ import json
 import logging
 import math
 
+from typing import TYPE_CHECKING
+
 import click
 
-from typing import TYPE_CHECKING
+from trackcli.cli.common import is_quiet
+from trackcli.cli.options import json_option, outdir_option, quiet_option
 
 if TYPE_CHECKING:  # the batch machinery (numpy, OpenCV) loads when a batch runs, not for --help
     from trackcli.run import batch
-
-
-def _quiet(ctx: click.Context, quiet: bool) -> bool:
-    root = ctx.find_root().obj
-    return quiet or bool(root and root.get("quiet"))
 
 
 @click.command("batch")
@@ -31,14 +29,16 @@ def _quiet(ctx: click.Context, quiet: bool) -> bool:
 @click.option("--scheduler", metavar="ADDRESS",
               help="Run the clips on a Dask cluster (e.g. tcp://host:8786) whose workers see the same "
                    "paths; needs pip install 'trackcli[dask]'.")
-@click.option("-o", "--outdir", type=click.Path(file_okay=False), default="trackcli-out", show_default=True,
-              help="Output folder: one subfolder per clip, and summary.json.")
+@outdir_option("Output folder: one subfolder per clip, and summary.json.")
 @click.option("--force", is_flag=True, help="Run clips again even when their outputs are complete and current.")
-@click.option("--json", "as_json", is_flag=True,
-              help="JSON lines on stdout: one object per clip (kind: clip), then one summary (kind: summary).")
-@click.option("-q", "--quiet", is_flag=True, help="No progress lines on stderr (failed clips are still reported).")
+@json_option("JSON lines on stdout: one object per clip (kind: clip), then one summary (kind: summary).")
+@quiet_option("No progress lines on stderr (failed clips are still reported).")
+@click.option("--masks", is_flag=True, help="Also write every clip's outlines as mask PNGs, OUTDIR/NAME/masks/ "
+              "(as the manifest's masks: true does for one clip).")
+@click.option("--palette", is_flag=True, help="With --masks: 8-bit palette PNGs, the object at index 1.")
+@click.option("--vot", is_flag=True, help="Also write every clip's VOT region lines, OUTDIR/NAME/NAME.TRACKER.vot.txt.")
 @click.pass_context
-def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet):
+def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet, masks, palette, vot):
     """Track (and score) every clip listed in MANIFEST, a YAML file.
 
     \b
@@ -53,9 +53,12 @@ def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet):
     Per clip, in OUTDIR/NAME/: the track CSV, recording and effective configuration as
     `trackcli track` writes them, score.json (with a truth) and result.json, written
     last.  A clip whose result.json is present and current is skipped (--force runs
-    it again).  A clip that fails is reported and the others go on.
+    it again).  A clip that fails is reported and the others go on; so does a clip whose
+    entry names a file that does not exist: every other clip runs, and the missing ones
+    are listed at the end (when none can run, nothing is written: exit status 4).
 
-    Exit status: 0 if every clip succeeded, 1 if any failed, 3 or 4 for a bad manifest.
+    Exit status: 0 if every clip succeeded, 1 if any failed or was missing an input, 3 or 4
+    for a bad manifest.
 
     \b
     Example:
@@ -63,7 +66,9 @@ def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet):
     """
     if scheduler and workers:
         raise click.UsageError("give --jobs (local processes) or --scheduler (Dask), not both")
-    quiet = _quiet(ctx, quiet)
+    if palette and not masks:
+        raise click.UsageError("--palette goes with --masks")
+    quiet = quiet or is_quiet(ctx)
     if quiet:
         logging.getLogger("trackcli").setLevel(logging.ERROR)
     from trackcli.run import batch
@@ -71,6 +76,9 @@ def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet):
     if scheduler:
         batch.require_dask()
     m = batch.load_manifest(manifest)
+    batch.check_runnable(m)
+    m = batch.with_exports(m, masks=("palette" if palette else "grey") if masks else None,
+                           vot=vot)
     total = len(m.jobs)
     done = 0
 
@@ -78,9 +86,12 @@ def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet):
         nonlocal done
         done += 1
         if r.status == "failed":
-            click.echo(f"[{done}/{total}] {r.name}: FAILED: {r.error}", err=True)
+            click.echo(f"[{done}/{total}] {r.name}: {'MISSING INPUT' if r.missing else 'FAILED'}: {r.error}", err=True)
         elif not quiet:
             click.echo(f"[{done}/{total}] {r.name}: {_progress_text(r)}", err=True)
+        if not quiet:
+            for w in r.warnings:
+                click.echo(f"Warning: {w}", err=True)
 
     from trackcli.io.outputs import output_dir
 
@@ -93,6 +104,10 @@ def batch_cmd(ctx, manifest, workers, scheduler, outdir, force, as_json, quiet):
         click.echo(json.dumps({"kind": "summary", "manifest": str(m.path), **result.summary()}, allow_nan=False))
     else:
         click.echo(format_table(result))
+    missing = [r for r in result.results if r.missing]
+    if missing:
+        click.echo(f"Error: {len(missing)} of {total} clips did not run, an input is missing: "
+                   + "; ".join(r.error for r in missing), err=True)
     ctx.exit(0 if result.succeeded else 1)
 
 

@@ -9,7 +9,7 @@ treating the shapes as hidden:
 
 E-step
     Under the current dynamics, run the Kalman filter and the Rauch–Tung–Striebel smoother
-    (:mod:`trackcli.trackers.smoothing`) over each training sequence; the smoothed means ``m``,
+    (:mod:`trackcli.dynamics.rts`) over each training sequence; the smoothed means ``m``,
     covariances ``V`` and lag-one cross-covariances give the expected sufficient statistics
     of AC Fig 11.6 over the frame triples ``k = 2 .. T-1``::
 
@@ -22,7 +22,7 @@ M-step
     Sequences are pooled by adding statistics, as for MLE.
 
 Each iteration cannot lower the log-likelihood of the measurements (the E-step's
-by-product, :func:`trackcli.trackers.smoothing.filter_information`); iterations stop when it rises by
+by-product, :func:`trackcli.dynamics.rts.filter_information`); iterations stop when it rises by
 less than ``tolerance`` nats per frame.  The belief over the first two frames of each
 sequence is a fixed broad Gaussian around the first two rough shapes, so it does not depend
 on the dynamics.  EM starts from the MLE fit to the rough shapes.
@@ -30,7 +30,7 @@ on the dynamics.  EM starts from the MLE fit to the rough shapes.
 Measurements
 ------------
 A sequence is a list of absolute information pairs ``(z_k, S_k)``: ``z_k ~ N(S_k X_k, S_k)``
-(see :mod:`trackcli.trackers.smoothing`).  From the Kalman contour tracker they are the aggregated
+(see :mod:`trackcli.dynamics.rts`).  From the Kalman contour tracker they are the aggregated
 normals of AC §8 (``z = Z + S X̃``); from a track CSV (``learn --from-tracks``) the shape
 ``X_k`` with its reported standard deviations, ``S_k = diag(std⁻²)``, and no measurement on
 frames the tracker marked lost.
@@ -47,10 +47,10 @@ from typing import Any, Sequence
 import numpy as np
 
 from trackcli.dynamics.ar2 import AR2
-from trackcli.errors import DataError
-from trackcli.trackers.kalman import KalmanState
+from trackcli.dynamics.kalman import KalmanState
 from trackcli.dynamics.learning import AR2Statistics, LearningReport, fit_ar2
-from trackcli.trackers.smoothing import Smoothed, filter_information, smooth_filtered, whiten
+from trackcli.dynamics.rts import Smoothed, filter_information, smooth_filtered, whiten
+from trackcli.errors import DataError
 
 __all__ = ["EMReport", "InformationSequence", "expected_statistics", "fit_ar2_em"]
 
@@ -150,8 +150,8 @@ def expected_statistics(smoothed: Smoothed, n_frames: int) -> AR2Statistics:
     ----------
     smoothed : Smoothed
         Beliefs over ``(X_{k-1}; X_k)`` for ``k = 1 .. T-1`` (as from
-        :func:`trackcli.trackers.smoothing.filter_information` then
-        :func:`trackcli.trackers.smoothing.smooth_filtered`).
+        :func:`trackcli.dynamics.rts.filter_information` then
+        :func:`trackcli.dynamics.rts.smooth_filtered`).
     n_frames : int
         ``T``, recorded in the statistics.
 

@@ -160,13 +160,17 @@ def place_space(space: ShapeSpace, template: Template) -> tuple[ShapeSpace, np.n
     ratio of their areas, :func:`placement_scale`) where the space has a scale direction
     (similarity, affine).
 
-    Only position and size are taken from the new template: a template outlined
+    Only position and size are taken from the new template (so a closed one may have other
+    control points than the model's, as ``draw`` gives each outline as many as it needs): a template outlined
     automatically in clutter is often too ragged to say more (its rotation, for instance),
     and the tracker itself refines the shape from the first frame on.
 
     Returns ``(space, X0)``.
     """
-    if template.n_ctrl != space.Nq or template.degree != space.basis.degree or template.closed != space.basis.closed:
+    # a closed template gives only its centroid and area, whatever its control points; an open
+    # one gives the mean of its control points, which must be the model's kind to compare
+    if template.closed != space.basis.closed or (not template.closed and (
+            template.n_ctrl != space.Nq or template.degree != space.basis.degree)):
         raise ModelError(
             f"the template has {template.n_ctrl} control points (degree {template.degree}, "
             f"{'closed' if template.closed else 'open'}) but the model's curve has {space.Nq} "

@@ -57,7 +57,7 @@ import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Protocol, Sequence
 
 import numpy as np
 
@@ -200,55 +200,30 @@ def outline_header(n_points: int) -> list[str]:
     return [OUTLINE_CLOSED, *[f"outline_{a}{i}" for i in range(n_points) for a in "xy"]]
 
 
-@dataclass(frozen=True)
-class OutlineColumns:
-    """Evaluates the ``n_points`` outline points of shape vectors of ``space`` for the CSV.
+def outline_cells(points: np.ndarray, closed: bool) -> list[str]:
+    """A row's outline cells: ``outline_closed`` (1 or 0) and the points ``(P, 2)``, px."""
+    return ["1" if closed else "0", *_fmt_all(points, 3)]
 
-    Attributes
-    ----------
-    space : ShapeSpace
-        The shape-space of the track (``Q = W X + Q0``).
-    n_points : int
-        P >= 2.
-    """
 
-    space: Any
-    n_points: int
+class OutlineSource(Protocol):
+    """What gives a track its outline columns (:class:`trackcli.run.outline_columns.OutlineColumns`):
+    their names, and a row's cells for the estimate ``X`` or the ``refined`` outline."""
 
-    def __post_init__(self) -> None:
-        if isinstance(self.n_points, bool) or not isinstance(self.n_points, int) or self.n_points < 2:
-            raise InputError(f"outline needs an integer number of points >= 2, got {self.n_points!r}")
+    def header(self) -> list[str]: ...
 
-    def points(self, X: np.ndarray) -> np.ndarray:
-        """Outline points ``(P, 2)`` of the shape vector ``X`` ``(Nx,)``."""
-        from trackcli.shapes.spline import dense_polygon
-
-        return dense_polygon(self.space.to_control(np.asarray(X, dtype=float)), self.space.basis, self.n_points)
-
-    def header(self) -> list[str]:
-        return outline_header(self.n_points)
-
-    def cells(self, X: np.ndarray, refined: np.ndarray | None = None) -> list[str]:
-        """The row's outline cells: of ``X``'s curve, or of the ``refined`` outline when given
-        (``n_points`` of its vertices that keep its shape, :func:`trackcli.observe.region.simplify_closed`)."""
-        if refined is not None and self.space.basis.closed:
-            from trackcli.observe.region import simplify_closed
-
-            return ["1", *_fmt_all(simplify_closed(refined, self.n_points), 3)]
-        pts = self.points(X)
-        return ["1" if self.space.basis.closed else "0", *_fmt_all(pts, 3)]
+    def cells(self, X: np.ndarray, refined: np.ndarray | None = None) -> list[str]: ...
 
 
 class TrackWriter:
     """Write rows as results arrive; the file appears under its final name only on ``close``.
 
-    With ``outline`` (an :class:`OutlineColumns`), every row ends with the outline columns;
+    With ``outline`` (an :class:`OutlineSource`), every row ends with the outline columns;
     with ``drawn`` (a :class:`DrawnBox`), the box columns hold the drawn box carried by the
     estimate; with ``frame_size`` ``(width, height)``, the box columns are clipped to the
     frame (:func:`clip_box`).
     """
 
-    def __init__(self, path: str | Path, names: Sequence[str], outline: OutlineColumns | None = None,
+    def __init__(self, path: str | Path, names: Sequence[str], outline: OutlineSource | None = None,
                  extra: Sequence[str] | None = None, drawn: DrawnBox | None = None,
                  frame_size: tuple[int, int] | None = None):
         self.path = Path(path)

@@ -1,6 +1,10 @@
 """What ``trackcli eval`` compares: a track's boxes and centres, and ground truth in its formats.
 
 The formats are described in :mod:`trackcli.run.evaluate`, which scores one against the other.
+A sample clip's truth CSV has its true outlines beside it, in ``<clip>.outline.json``: a base
+outline and, in each row, the pose that places it.  Placing them is the sample data's
+business (:mod:`trackcli.sample_data`); :func:`load_truth` is given the function that does
+it (:data:`PlaceOutlines`), as :func:`trackcli.run.truth.load_truth` does.
 """
 
 from __future__ import annotations
@@ -12,7 +16,7 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Callable, Literal, Mapping, Sequence
 
 import numpy as np
 
@@ -28,6 +32,10 @@ _TRACK_COLUMNS = ("frame", "cx", "cy", *_BOX_COLUMNS)
 _TRUTH_COLUMNS = ("frame", "cx", "cy", *_BOX_COLUMNS)
 
 PathLike = str | os.PathLike
+
+PlaceOutlines = Callable[[Path, Sequence[Mapping[str, str]]], np.ndarray]
+"""``place(outline_json, rows)``: the true outline of every row of a truth CSV, ``(N, P, 2)``,
+from the outline file beside it; raises ``ValueError`` for a row it cannot place."""
 
 # ---------------------------------------------------------------------------------------------
 # Data
@@ -398,7 +406,7 @@ def _load_box_file(path: Path, text: str) -> GroundTruth:
     return GroundTruth.from_boxes(boxes, source=str(path))
 
 
-def _load_truth_csv(path: Path, text: str, object_id: int) -> GroundTruth:
+def _load_truth_csv(path: Path, text: str, object_id: int, outlines: PlaceOutlines | None) -> GroundTruth:
     header, rows = _csv_table(path, text, _TRUTH_COLUMNS, "truth")
     has_object = "object" in header
     has_visible = "visible" in header
@@ -437,11 +445,11 @@ def _load_truth_csv(path: Path, text: str, object_id: int) -> GroundTruth:
     visible = np.array([r[3] for r in ordered], dtype=bool)
     finite = np.all(np.isfinite(box), axis=1) & np.all(np.isfinite(centre), axis=1)
     present = visible & finite & (box[:, 2] > 0) & (box[:, 3] > 0)
-    outline = _truth_outlines(path, header, [r[5] for r in ordered])
+    outline = _truth_outlines(path, header, [r[5] for r in ordered], outlines) if outlines else None
     return GroundTruth(frame, centre, box, present, centre_kind="centroid", source=str(path), outline=outline)
 
 
-def _truth_outlines(path: Path, header: list[str], records: list[dict]) -> np.ndarray | None:
+def _truth_outlines(path: Path, header: list[str], records: list[dict], place: PlaceOutlines) -> np.ndarray | None:
     """True outlines of a sample-data truth CSV from ``<clip>.outline.json`` beside it, or None."""
     name = path.name
     if not name.endswith(".truth.csv") or not all(c in header for c in ("tx", "ty", "angle", "scale")):
@@ -449,16 +457,13 @@ def _truth_outlines(path: Path, header: list[str], records: list[dict]) -> np.nd
     json_path = path.with_name(name[: -len(".truth.csv")] + ".outline.json")
     if not json_path.is_file():
         return None
-    from trackcli.sample_data import load_outline, true_outline
-
-    base = load_outline(json_path)
     try:
-        return np.stack([true_outline(rec, base) for rec in records])
+        return place(json_path, records)
     except ValueError as exc:
         raise InputError(f"{path}: cannot place the outline of {json_path.name} ({exc})") from None
 
 
-def load_truth(path: PathLike, *, object_id: int = 0) -> GroundTruth:
+def load_truth(path: PathLike, *, object_id: int = 0, outlines: PlaceOutlines | None = None) -> GroundTruth:
     """Read ground truth, recognising its format from its content.
 
     Parameters
@@ -472,6 +477,10 @@ def load_truth(path: PathLike, *, object_id: int = 0) -> GroundTruth:
     object_id : int
         Which object of a trackcli truth CSV to read (column ``object``); ignored for box
         files.
+    outlines : callable, optional
+        Places the true outlines of a sample clip's truth CSV (:data:`PlaceOutlines`); used
+        when the CSV, ``<clip>.truth.csv``, has the pose columns ``tx, ty, angle, scale`` and
+        ``<clip>.outline.json`` lies beside it.  Without it, ``outline`` is None.
 
     Returns
     -------
@@ -500,6 +509,6 @@ def load_truth(path: PathLike, *, object_id: int = 0) -> GroundTruth:
     first = next((line for line in text.splitlines() if line.strip()), "")
     header_cells = [cell.strip().lower() for cell in first.split(",")]
     if "frame" in header_cells:
-        return _load_truth_csv(path, text, int(object_id))
+        return _load_truth_csv(path, text, int(object_id), outlines)
     _refuse_yaml(path, first, "truth file")
     return _load_box_file(path, text)

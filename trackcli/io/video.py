@@ -250,6 +250,17 @@ class Video:
         """The video codec of a file as a lower-case FOURCC (``"vp09"``, ``"avc1"``, ``"av01"``); empty for folders."""
         return self._fourcc.strip().lower()
 
+    def frame_name(self, index: int) -> str:
+        """The name of frame ``index`` without a suffix: an image's own (``00042`` for
+        ``00042.jpg``), or for a video file the index in five digits as DAVIS numbers frames
+        (``00042``; more digits from frame 100 000 on).  Per-frame outputs are named by it."""
+        index = _as_int("index", index)
+        if not 0 <= index < self.n_total:
+            raise ConfigError(f"frame index {index} is out of range for {self.path}: valid 0..{self.n_total - 1}")
+        if self.kind == "folder":
+            return self._images[index].stem
+        return f"{index:05d}"
+
     @property
     def whole_clip(self) -> bool:
         """Whether the selection is every frame of the clip (no start, end or step)."""

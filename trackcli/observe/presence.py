@@ -13,7 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trackcli.settings import CondensationSettings, MeasurementSettings
+from trackcli.settings import MeasurementSettings, ObservationSettings
+from trackcli.observe import appearance
 from trackcli.observe import discriminant as observe
 from trackcli.shapes.outline import contour_summary
 from trackcli.shapes.shape_space import ShapeSpace
@@ -27,7 +28,7 @@ class Presence:
     Learned from the template on the first frame; gives the discriminant log-likelihood of
     hypothesised curves (CONDENSATION's default) and, for both trackers, the per-frame
     confidence and ``lost`` verdict.  Letterbox or pillarbox bars found on the first frame
-    (``area``, :func:`~trackcli.observe.discriminant.picture_area`) count in every frame's
+    (``area``, :func:`~trackcli.observe.appearance.picture_area`) count in every frame's
     evidence as beyond the frame's edge.
     """
 
@@ -46,11 +47,11 @@ class Presence:
 
     @classmethod
     def learn(cls, image: np.ndarray, fimg: np.ndarray, space: ShapeSpace, sampler: CurveSampler, X0: np.ndarray,
-              measurement: MeasurementSettings, settings: CondensationSettings) -> Presence:
+              measurement: MeasurementSettings, settings: ObservationSettings) -> Presence:
         pts, nrm = space.points_normals(X0, sampler)
         poly, _, _ = contour_summary(space, X0)
-        area = observe.picture_area(image)
-        app = observe.learn_appearance(image, fimg if area is None else observe.without_bars(fimg, area), pts, nrm,
+        area = appearance.picture_area(image)
+        app = appearance.learn_appearance(image, fimg if area is None else appearance.without_bars(fimg, area), pts, nrm,
                                        poly, h=settings.search, sigma=settings.sigma, threshold=measurement.threshold)
         judge = cls(app, settings.search, settings.sigma, measurement.threshold, settings.miss_probability,
                     settings.colour_weight, measurement.presence_centre, area=area)
@@ -67,9 +68,9 @@ class Presence:
         (``app.colour_map``) if already made (it is changed in place on the bars)."""
         if self.area is None:
             return observe.evidence(self.app, image, fimg, centre, self.threshold, cmap=colour)
-        ev = observe.evidence(self.app, image, observe.without_bars(fimg, self.area), centre, self.threshold,
+        ev = observe.evidence(self.app, image, appearance.without_bars(fimg, self.area), centre, self.threshold,
                               cmap=colour)
-        observe.clear_bars(ev.cmap, self.area)
+        appearance.clear_bars(ev.cmap, self.area)
         return dataclasses.replace(ev, area=self.area)
 
     def score(self, ev: observe.FrameEvidence, pts: np.ndarray, nrm: np.ndarray) -> np.ndarray:

@@ -22,6 +22,11 @@ template was drawn from, moves the last outline to each new frame by dense optic
 second prior), lets the colours follow the object slowly on frames held with confidence, and
 says when a frame's region is evidence enough that the object is held (:meth:`~OutlineRefiner.holds`,
 the ``lost`` verdict's second opinion).
+
+Its place in a run: a stage after each tracker step (:func:`trackcli.trackers.base.run_tracker`),
+which draws the outline (the CSV's outline columns, the recording's ``video/outline``) and
+changes nothing of the estimate, its weights or the next frame's prediction.  The terms that
+weigh the tracker's hypotheses are the observation model's (:mod:`trackcli.observe.terms`).
 """
 
 from __future__ import annotations
@@ -515,3 +520,12 @@ class OutlineRefiner:
         t = self.settings.lost_contrast
         return (fit is not None and t > 0 and math.isfinite(fit.contrast) and fit.contrast >= t
                 and fit.agreement >= HOLD_AGREEMENT)
+
+
+def outline_refiner(settings, space, start=None) -> OutlineRefiner | None:
+    """The run's :class:`OutlineRefiner` (``outline.refine``), or None: refinement off, no
+    outline columns to draw (``output.outline_points`` 0), or an open curve.  ``start``: the
+    region the template was fitted to (:attr:`trackcli.shapes.template.Template.region`)."""
+    if settings.outline.refine and settings.output.outline_points and space.basis.closed:
+        return OutlineRefiner(settings.outline, start=start)
+    return None

@@ -28,6 +28,8 @@ import cv2
 import numpy as np
 from numba import njit
 
+from trackcli.observe.appearance import is_grey
+
 #: a pixel kept its colour when every channel is within this many levels of the first frame's
 #: (after matching the exposure and a 3 x 3 mean)
 KEPT_LEVELS = 12.0
@@ -180,7 +182,7 @@ class StillScene:
         :data:`WORK_PIXELS` pixels, and so that a large object spans 32 to 64.
     area : (x0, y0, x1, y1), optional
         The picture between letterbox or pillarbox bars
-        (:func:`~trackcli.observe.discriminant.picture_area`): the bars are never judged either.
+        (:func:`~trackcli.observe.appearance.picture_area`): the bars are never judged either.
     """
 
     def __init__(self, first: np.ndarray, own: np.ndarray, size: float,
@@ -190,7 +192,6 @@ class StillScene:
         self.k = 2 ** math.ceil(math.log2(k) - 1e-9)
         self.size = float(size)
         self.first = _smooth(first, self.k)
-        from trackcli.observe.discriminant import is_grey  # (that module reads this one's results)
         self.grey = self.first.shape[2] == 1 or is_grey(first)  # one channel or three alike: no exposure
         h, w = self.first.shape[:2]
         own = np.asarray(own, dtype=np.uint8)
@@ -265,30 +266,3 @@ class StillScene:
         kept, usable = self.kept_share(still_map, points, normals)
         s = np.clip((kept - STILL_FROM) / (STILL_FULL - STILL_FROM), 0.0, 1.0)
         return np.where(usable >= USABLE_MIN, s, 0.0)
-
-
-def first_light_matrix(exposure: tuple[np.ndarray, np.ndarray] | None, channels: int) -> np.ndarray | None:
-    """The ``cv2.transform`` matrix (float32, ``(channels, channels + 1)``) that brings an image
-    of ``channels`` channels back to the first frame's exposure, ``(image - offset) / gain`` per
-    channel, for an ``exposure`` of :meth:`StillScene.measure` (a gain and offset per channel,
-    or one for all); None when ``exposure`` is None or within a hundredth of gain and a level of
-    offset of none.  Made once per frame, applied to each block of it that is read."""
-    if exposure is None:
-        return None
-    gain, offset = (np.asarray(v, dtype=np.float64).reshape(-1) for v in exposure)
-    if np.all(np.abs(gain - 1.0) < 0.01) and np.all(np.abs(offset) < 1.0):
-        return None
-    if channels != gain.size:  # a grey image, or one exposure for every channel
-        gain, offset = np.full(channels, gain.mean()), np.full(channels, offset.mean())
-    mat = np.zeros((channels, channels + 1), np.float32)
-    mat[np.arange(channels), np.arange(channels)] = 1.0 / gain
-    mat[:, channels] = -offset / gain
-    return mat
-
-
-def in_first_light(image: np.ndarray, exposure: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
-    """``image`` (BGR or grey, uint8) brought back to the first frame's exposure
-    (:func:`first_light_matrix`); the image itself when that changes nothing."""
-    img = np.asarray(image)
-    mat = first_light_matrix(exposure, 1 if img.ndim == 2 else img.shape[2])
-    return image if mat is None else cv2.transform(img, mat).reshape(img.shape)

@@ -5,47 +5,44 @@ open the clip, decide what is tracked (a learned model placed by a template draw
 clip, a model alone, or a template with hand-set dynamics), call :func:`run_clip`, and write
 the effective configuration with the results (a run that fails writes none of them).
 
-:func:`run_clip` drives a tracker through the frame loop of :mod:`trackcli.trackers.base`, writes every
-result to the track CSV as it arrives, mirrors it into a Rerun recording, and returns a
-:class:`RunSummary` (also the source of the one-line summary the command prints).
-All files are written atomically: an interrupted run leaves no half-written file.
+:func:`run_clip` drives a tracker through the frame loop of :mod:`trackcli.trackers.base` and
+feeds every result to the sinks of :mod:`trackcli.run.sinks` (the track CSV, the Rerun
+recording, a smoother, the progress bar, the counts of the :class:`RunSummary` that gives the
+one-line summary the command prints).  All files are written atomically: an interrupted run
+leaves no half-written file.
+
+The runner has no branch on a tracker's name: what a tracker supports (a smoother, mixed
+dynamics, its sample count, the sections it reads, how it starts, a structure template, what
+``-v`` says of it) is declared on its class (:class:`trackcli.trackers.base.Tracker`).
 """
 
 from __future__ import annotations
 
-import array
 import contextlib
 import logging
 import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Callable, Collection, ContextManager, Iterable, Iterator
+from typing import Any, Callable, Collection, ContextManager, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
 from trackcli import __version__
-from trackcli.settings import Settings, dump_yaml, to_dict
 from trackcli.dynamics.ar2 import AR2
 from trackcli.dynamics.mixed import is_mixed_file
 from trackcli.errors import ConfigError, DataError, TemplateError
 from trackcli.io.outputs import output_dir, refuse_overwriting_inputs, write_text
+from trackcli.io.tracks import DrawnBox
+from trackcli.run.outline_columns import OutlineColumns
+from trackcli.run.background import DecodeAhead
+from trackcli.run.sinks import Progress, RecordingSink, Sink, SmootherSink, Tally, TrackCsv, feed
+from trackcli.settings import Settings, dump_yaml, to_dict
 from trackcli.shapes.outline import contour_summary
 from trackcli.shapes.shape_space import ShapeSpace
-from trackcli.io.tracks import DrawnBox, OutlineColumns, TrackWriter
-from trackcli.run.background import BackgroundRecorder, DecodeAhead
-from trackcli.trackers import tracker_class
+from trackcli.trackers import tracker_class, trackers_that
 
 log = logging.getLogger(__name__)
-
-#: The trackers ``track_clip`` can run.
-
-#: Colours (RGB) used in recordings.
-ESTIMATE_RGB = (255, 60, 40)
-GATE_RGB = (255, 210, 0)
-FEATURE_RGB = (0, 200, 255)
-SMOOTHED_RGB = (255, 0, 255)
-OUTLINE_RGB = (60, 255, 60)
 
 
 @dataclass(frozen=True)
@@ -129,6 +126,7 @@ def run_clip(
     extra_columns: list[str] | None = None,
     prepare: Callable[[Any], Any] | None = None,
     drawn: DrawnBox | None = None,
+    sinks: Sequence[Sink] = (),
 ) -> RunSummary:
     """Track ``video`` with ``make_tracker(frames)`` and write the outputs.
 
@@ -168,6 +166,9 @@ def run_clip(
         ``make_tracker`` then receives its results.
     drawn : DrawnBox, optional
         The box columns of the CSVs hold this box carried by the estimate.
+    sinks : sequence of Sink
+        More consumers of the results (:class:`trackcli.run.sinks.Sink`, e.g. per-frame mask
+        images), fed after the CSV, the counts, the recording, the smoother and the progress.
     """
     if outline_points == 1:
         raise ConfigError("output.outline_points: expected 0 (no outline) or at least 2 points, got 1")
@@ -175,196 +176,44 @@ def run_clip(
     # with a recording that keeps the source's JPEG frames, the frames come with them
     keep_jpeg = rrd_path is not None and frames_mode == "auto" and hasattr(video, "frames")
     frames = DecodeAhead(video.frames(encoded=True) if keep_jpeg else video, prepare=prepare)
-    results = make_tracker(frames)
-    recorder: BackgroundRecorder | None = None
     t_start = time.perf_counter()
-    n = lost = 0
-    found_sum = 0.0
-    ess_sum, ess_count = 0.0, 0
-    # the recording's plots: the series are sent every SERIES_CHUNK frames and forgotten; what
-    # only the end can draw is kept compact (each frame's histogram as the 8-bit grey levels
-    # of its row of the heat-map, one byte a bin; the tracker's own values, 8 bytes each)
-    series: dict[str, array.array] = {k: array.array("d") for k in SERIES_KEYS}
-    extra_names = list(extra_columns or [])
-    extras = array.array("d")
-    extras_at = array.array("d")  # frame and time of each row of extras
-    hist_rows = bytearray()
-    hist_edges = None
-    rec_ctx = None
-    rec = None
-    log_frame = None
     # the box columns hold the part of the box inside the frame, as benchmark annotations do
     size = (video.width, video.height)
-    smooth_ctx = (TrackWriter(smooth_csv_path, space.names, outline, extra_columns, drawn, frame_size=size)
-                  if smoother is not None else contextlib.nullcontext())
-    smoothed_centroids: list[tuple[int, float, float, float]] = []
-
-    def write_smoothed(done: list[Any]) -> None:
-        for s in done:
-            smooth_writer.write(s)
-            smoothed_centroids.append((s.index, s.time, float(s.centroid[0]), float(s.centroid[1])))
-            if rec is not None:
-                rec.set_frame(s.index, s.time)
-                rec.log_contour("video/smoothed", s.contour, color=SMOOTHED_RGB, width=2.0)
-
+    tally = Tally()
+    more, sinks = list(sinks), []
     try:
-        if rrd_path is not None:
-            from trackcli.io.recording import Recording, histogram_grey
-
-            rec_ctx = Recording(rrd_path, app_id="trackcli", recording_id=recording_id, blueprint="track",
-                                properties=properties)
-            rec = rec_ctx.__enter__()
-        with (TrackWriter(csv_path, space.names, outline, extra_columns, drawn, frame_size=size) as writer,
-              smooth_ctx as smooth_writer):
-            if rec is not None:
-                rec.log_params("params", params)
-                from trackcli.io.recording import frame_storage
-
-                path = getattr(video, "path", None)
-                storage, why = frame_storage(frames_mode, codec=getattr(video, "codec", ""),
-                                             embeddable=getattr(video, "is_rerun_video_asset", lambda: False)(),
-                                             whole_clip=getattr(video, "whole_clip", False))
-                log.info("recording frames as %s: %s", storage.upper() if storage == "jpeg" else "a video asset", why)
-                log_frame = rec.frame_logger(path if storage == "asset" else None, quality=jpeg_quality,
-                                             keep_jpeg=keep_jpeg)
-                recorder = BackgroundRecorder(rec, log_frame, _record_frame)
-            step_seconds = 0.0
-            while True:
-                t0 = time.perf_counter()
-                try:
-                    r = next(results)
-                except StopIteration:
-                    break
-                finally:
-                    step_seconds += time.perf_counter() - t0
-                writer.write(r)
-                n += 1
-                lost += int(r.lost)
-                found_sum += r.n_found / max(r.n_normals, 1)
-                if np.isfinite(r.ess):
-                    ess_sum += float(r.ess)
-                    ess_count += 1
-                if rec is not None:
-                    for key, val in (("frame", r.index), ("time", r.time), ("tx", r.X[0]), ("ty", r.X[1]),
-                                     ("cx", r.centroid[0]), ("cy", r.centroid[1]), ("found", r.n_found),
-                                     ("gate", r.gate_rms), ("ess", r.ess), ("loglik", r.loglik)):
-                        series[key].append(float(val))
-                    if len(series["frame"]) >= SERIES_CHUNK:  # sent in the recorder's thread, in order
-                        full, series = series, {k: array.array("d") for k in SERIES_KEYS}
-                        recorder.call(_record_series, rec, full)
-                    if extra_names:
-                        extras.extend(float(r.extra.get(e, np.nan)) for e in extra_names)
-                        extras_at.extend((float(r.index), float(r.time)))
-                    if "histogram" in r.display:
-                        hist_rows += histogram_grey(np.asarray(r.display["histogram"])[None])[0].tobytes()
-                        hist_edges = r.display["hist_edges"]
-                if recorder is not None:
-                    recorder.submit(frames.current, r)
-                if smoother is not None:
-                    write_smoothed(smoother.push(r))
-                if progress is not None:
-                    progress(1)
-            if recorder is not None:
-                recorder.finish()
+        try:
+            recording = None
+            if rrd_path is not None:
+                recording = RecordingSink(rrd_path, video, params=params, jpeg_quality=jpeg_quality,
+                                          recording_id=recording_id, properties=properties, frames_mode=frames_mode,
+                                          keep_jpeg=keep_jpeg, extra_columns=extra_columns)
+                sinks.append(recording)
+            sinks.insert(0, TrackCsv(csv_path, space.names, outline, extra_columns, drawn, size))
+            sinks.insert(1, tally)
             if smoother is not None:
-                write_smoothed(smoother.finish())
-            wall = time.perf_counter() - t_start
-            if rec is not None:
-                _record_series(rec, series)
-                if hist_rows and hist_edges is not None:
-                    rec.log_histogram_image("histogram/tx_over_time",
-                                            np.frombuffer(hist_rows, np.uint8).reshape(-1, len(hist_edges) - 1),
-                                            hist_edges)
-                if extras:
-                    at = np.asarray(extras_at, dtype=float).reshape(-1, 2)
-                    f, t = at[:, 0].astype(np.int64), at[:, 1]
-                    values = np.asarray(extras, dtype=float).reshape(-1, len(extra_names))
-                    # a mixed-state run's label posteriors (p_<label>): one plot and a label strip
-                    labels = [j for j, e in enumerate(extra_names) if e.startswith("p_")]
-                    if labels:
-                        names = [extra_names[j][2:] for j in labels]
-                        rec.send_series("series/labels", f, t, values[:, labels], names=names, unit="probability")
-                        rec.log_label_strip("labels/posterior_over_time", values[:, labels], names,
-                                            first_frame=int(f[0]))
-                    for j, e in enumerate(extra_names):
-                        if j not in labels:
-                            rec.send_series(f"series/extra/{e}", f, t, values[:, j], names=e)
-                if smoothed_centroids:
-                    c = np.asarray(smoothed_centroids)
-                    rec.send_series("series/centroid_smoothed", c[:, 0].astype(np.int64), c[:, 1], c[:, 2:],
-                                    names=["cx", "cy"])
-    except BaseException as exc:
-        if recorder is not None:
-            recorder.close()
-        if rec is not None:
-            rec_ctx.__exit__(type(exc), exc, exc.__traceback__)
-        raise
+                smoothed = TrackCsv(smooth_csv_path, space.names, outline, extra_columns, drawn, size)
+                sinks.append(SmootherSink(smoother, smoothed, recording))
+            if progress is not None:
+                sinks.append(Progress(progress))
+        except BaseException as exc:
+            for sink in reversed([*sinks, *more]):
+                sink.close(exc)
+            raise
+        step_seconds = feed(make_tracker(frames), frames, [*sinks, *more])
     finally:
         frames.close()
-    if rec_ctx is not None:
-        rec_ctx.__exit__(None, None, None)
+    wall = time.perf_counter() - t_start
     # the tracker's own time: its steps, less the time they waited for a decoded frame, plus
     # the time `prepare` spent on their images in the decoding thread
     tracker_seconds = max(step_seconds - frames.wait_seconds + frames.prepare_seconds, 1e-9)
     return RunSummary(
-        clip=str(getattr(video, "path", "?")), tracker=tracker, frames=n, frames_lost=lost,
-        mean_found_fraction=found_sum / n if n else 0.0,
-        mean_ess=ess_sum / ess_count if ess_count else float("nan"),
+        clip=str(getattr(video, "path", "?")), tracker=tracker, frames=tally.frames, frames_lost=tally.lost,
+        mean_found_fraction=tally.mean_found_fraction, mean_ess=tally.mean_ess,
         tracker_seconds=tracker_seconds, decode_seconds=frames.decode_seconds, wall_seconds=wall,
         csv=str(csv_path), rrd=str(rrd_path) if rrd_path else None,
         smoothed_csv=str(smooth_csv_path) if smoother is not None else None,
     )
-
-
-def _record_frame(rec: Any, log_frame: Any, frame: Any, r: Any) -> None:
-    rec.set_frame(r.index, r.time)
-    log_frame(r.index, frame.image, getattr(frame, "encoded", None))
-    d = r.display
-    if "particle_contours" in d:
-        rec.log_contours("video/particles", d["particle_contours"], d["particle_weights"], closed=True)
-    if "gate_inner" in d:
-        rec.log_segments("video/gates", d["gate_inner"], d["gate_outer"], color=GATE_RGB)
-    if "features" in d and len(d["features"]):
-        rec.log_points("video/features", d["features"], colors=FEATURE_RGB, radii=2.0)
-    rec.log_contour("video/estimate", r.contour, color=ESTIMATE_RGB, width=2.0)
-    if getattr(r, "outline", None) is not None:
-        rec.log_contour("video/outline", r.outline, color=OUTLINE_RGB, width=2.0)
-    rec.log_points("video/centroid", r.centroid[None], colors=ESTIMATE_RGB, radii=3.0)
-    if "histogram" in d:
-        rec.log_histogram("histogram/tx", d["histogram"], d["hist_edges"])
-    for path, kind, data, color in d.get("overlays", ()):
-        if kind == "points":
-            rec.log_points(path, data, colors=color, radii=3.0)
-        elif kind == "segments":
-            rec.log_segments(path, data[0], data[1], color=color)
-        elif kind == "contour":
-            rec.log_contour(path, data, color=color, width=2.0)
-        else:
-            raise DataError(f"display overlay {path}: unknown kind {kind!r} (points, segments or contour)")
-
-
-#: the per-frame values plotted in the recording (``series/…``)
-SERIES_KEYS = ("frame", "time", "tx", "ty", "cx", "cy", "found", "gate", "ess", "loglik")
-#: frames whose series values are sent to the recording together, then dropped from memory
-SERIES_CHUNK = 1000
-
-
-def _record_series(rec: Any, s: dict[str, array.array]) -> None:
-    """Send the series values held in ``s`` (:data:`SERIES_KEYS`) to the recording."""
-    if not s["frame"]:
-        return
-    f = np.asarray(s["frame"], dtype=np.int64)
-    t = np.asarray(s["time"], dtype=float)
-    rec.send_series("series/translation", f, t, np.column_stack([s["tx"], s["ty"]]), names=["tx", "ty"], unit="px")
-    rec.send_series("series/centroid", f, t, np.column_stack([s["cx"], s["cy"]]), names=["cx", "cy"], unit="px")
-    rec.send_series("series/gate_rms", f, t, np.asarray(s["gate"], dtype=float), names="gate_rms", unit="px")
-    rec.send_series("series/normals_with_feature", f, t, np.asarray(s["found"], dtype=float),
-                    names="normals with a feature", unit="count")
-    ess = np.asarray(s["ess"], dtype=float)
-    if np.isfinite(ess).any():
-        rec.send_series("series/ess", f, t, ess, names="ESS", unit="samples")
-        rec.send_series("series/loglik", f, t, np.asarray(s["loglik"], dtype=float), names="loglik",
-                        unit="log-likelihood")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -399,8 +248,11 @@ class TrackingSetup:
 
 
 def clip_name(clip: str | os.PathLike[str]) -> str:
-    """Default name of a clip's outputs: a file's stem, or a folder's name."""
+    """Default name of a clip's outputs: a file's stem, or a folder's name; for the frames folder
+    of a benchmark sequence, ``NAME/img``, the sequence's name ``NAME``."""
     p = Path(clip)
+    if p.name.lower() == "img" and not p.suffix:
+        return p.absolute().parent.name or p.name
     return p.stem if p.suffix else p.name
 
 
@@ -532,7 +384,7 @@ def mixed_dynamics_on(mm: Any, template: Any, template_path: str | os.PathLike[s
     shape-space) are placed by ``template`` as a single learned model is, or without one
     start where their own template was drawn.  A hand-written model needs a template.
     """
-    from trackcli.dynamics.mixed import build_dynamics
+    from trackcli.dynamics.mixed_dynamics import build_dynamics
     from trackcli.dynamics.model import place_dynamics, place_space
 
     if mm.space is None:
@@ -611,6 +463,8 @@ def track_clip(
     explicit: Collection[str] | None = None,
     smooth: bool = False,
     inputs: dict[str, Any] | None = None,
+    options: Mapping[str, str] | None = None,
+    sinks: Callable[[Any], Sequence[Sink]] | None = None,
 ) -> RunSummary:
     """Track one clip and write its outputs: what ``trackcli track`` does per clip.
 
@@ -637,7 +491,8 @@ def track_clip(
         Output folder.
     model, template : path, optional
         What to track (at least one), see :func:`tracking_setup`.
-    tracker : {"condensation", "kalman", "mht"}
+    tracker : str
+        A name of :data:`trackcli.trackers.TRACKERS`.
     name : str, optional
         Output file prefix; default :func:`clip_name` of ``clip``.
     rrd : bool
@@ -656,6 +511,13 @@ def track_clip(
     inputs : dict, optional
         Other input files of the run by label (e.g. ``{"-c/--config": path}``), which the
         outputs must not replace either.
+    options : mapping of str to str, optional
+        The command-line options the user gave that set a setting, each with the dotted key
+        it set (e.g. ``{"--particles": "condensation.particles"}``): one that sets a section the
+        tracker does not read (:attr:`~trackcli.trackers.base.Tracker.reads`) is refused.
+    sinks : callable, optional
+        Given the opened clip, more consumers of the results (e.g. the per-frame masks of
+        :class:`trackcli.run.export.MaskSink`), fed and closed with the run's own.
 
     Returns
     -------
@@ -664,24 +526,30 @@ def track_clip(
     Raises
     ------
     ConfigError
-        Unknown tracker, nothing to track, a frame selection outside the clip, or an output
-        that names an input.
+        Unknown tracker, nothing to track, something the tracker does not support (``smooth``,
+        a mixed-state model, an option it ignores, a missing structure template), a frame
+        selection outside the clip, or an output that names an input.
     VideoError, ModelError, TemplateError
         An input cannot be read or does not fit this clip.
     """
     from trackcli.io.video import open_video
+    from trackcli.observe.region import outline_refiner
+    from trackcli.shapes.template import load_template
     from trackcli.trackers.base import run_tracker
 
     tracker_cls = tracker_class(tracker)
-    if smooth and tracker == "mht":
-        raise ConfigError("--smooth: not available with --tracker mht (its estimate may jump from one mode to "
-                          "another); smooth a kalman or condensation track")
+    check_options(tracker_cls, options or {})
+    if smooth and tracker_cls.smoother is None:
+        raise ConfigError(f"--smooth: not available with --tracker {tracker} ({tracker_cls.no_smoother})")
     name = name or clip_name(clip)
     mixed = bool(model) and is_mixed_file(model)
-    if mixed and tracker != "condensation":
-        raise ConfigError(f"--model {model} is a mixed-state model: only --tracker condensation tracks with one")
+    if mixed and not tracker_cls.mixed_dynamics:
+        able = ", ".join(f"--tracker {n}" for n in trackers_that("mixed_dynamics"))
+        raise ConfigError(f"--model {model} is a mixed-state model: only {able} tracks with one")
     if mixed and smooth:
         raise ConfigError("--smooth: not available with a mixed-state model (the smoother needs one AR(2) model)")
+    if tracker_cls.needs_template and not template:
+        raise ConfigError(f"--tracker {tracker} needs --template (a structure template)")
     if model and explicit is not None and not mixed:
         from trackcli.dynamics.model import load_model, settings_with_model
 
@@ -697,38 +565,25 @@ def track_clip(
                               {"clip": clip, "model": model, "template": template, **(inputs or {})})
     v = settings.video
     with open_video(clip, fps=v.fps, start=v.start, end=v.end, step=v.step) as video, output_dir(outdir):
-        # a CONDENSATION sample set drawn from the steady state does not start at the template
-        at_template = tracker != "condensation" or settings.condensation.init == "template"
+        at_template = tracker_cls.starts_at_template(settings)
         setup = tracking_setup(model, template, settings, video, starts_at_template=at_template)
         space, dynamics, X0 = setup.space, setup.dynamics, setup.X0
         rng = np.random.default_rng(settings.seed)
         extra: dict[str, Any] = {}
-        if getattr(tracker_cls, "needs_template", False):  # e.g. a structure template's parts
-            if not template:
-                raise ConfigError(f"--tracker {tracker} needs --template (a structure template)")
-            from trackcli.shapes.template import load_template
-
+        if tracker_cls.needs_template:  # e.g. a structure template's parts
             extra = {"template": load_template(template), "template_path": str(template)}
         the_tracker = tracker_cls(space, dynamics, settings, rng, X0=X0, **extra)
         the_tracker.label = name
 
-        refiner = None
-        if settings.outline.refine and settings.output.outline_points and space.basis.closed:
-            from trackcli.observe.region import OutlineRefiner
-            from trackcli.shapes.template import load_template
-
-            # the region the template was fitted to starts the refinement (its colours, its outline)
-            refiner = OutlineRefiner(settings.outline, start=load_template(template).region if template else None)
+        # the drawn outline, refined from each frame's estimate after the step; the region the
+        # template was fitted to starts it (its colours, its outline)
+        refiner = outline_refiner(settings, space, start=load_template(template).region if template else None)
 
         def make(frames: Iterable[Any]) -> Iterator[Any]:
             return run_tracker(the_tracker, frames, refiner=refiner)
-        smoother: Any = None
-        if smooth:
-            from trackcli.trackers.smoothing import KalmanTrackSmoother, ParticleSmoother
 
-            smoother = (KalmanTrackSmoother(space, dynamics) if tracker == "kalman"
-                        else ParticleSmoother(space, dynamics))
-        _log_setup(name, tracker, setup, settings, video)
+        smoother = tracker_cls.make_smoother(space, dynamics) if smooth else None
+        _log_setup(name, tracker_cls, setup, settings, video)
         params = {"clip": str(clip), "tracker": tracker, "source": setup.source, "settings": to_dict(settings)}
         # the seed as text: exact at any size, and of one type for every run in a process
         properties = {"seed": str(settings.seed), "clip": str(clip), "tracker": tracker, "trackcli": __version__}
@@ -742,7 +597,7 @@ def track_clip(
                                properties=properties, outline_points=settings.output.outline_points,
                                frames_mode=settings.output.frames, smoother=smoother, smooth_csv_path=smooth_path,
                                prepare=the_tracker.prepare if video.width * video.height >= PREPARE_AHEAD_PIXELS
-                               else None)
+                               else None, sinks=sinks(video) if sinks is not None else ())
         # written with the outputs, not before them: a run that fails leaves no configuration
         write_text(config_path, dump_yaml(settings))
         log.info("%s: %d frames decoded in %.2f s, tracked in %.2f s", name, summary.frames, summary.decode_seconds,
@@ -750,21 +605,32 @@ def track_clip(
         return summary
 
 
-def _log_setup(name: str, tracker: str, setup: TrackingSetup, settings: Settings, video: Any) -> None:
+def check_options(tracker_cls: Any, options: Mapping[str, str]) -> None:
+    """Refuse a command-line option that sets a section ``tracker_cls`` does not read.
+
+    ``options`` maps each option given to the dotted key it set (``{"--particles":
+    "condensation.particles"}``).  Raises a one-line ConfigError naming the option (and the
+    tracker's own sample count when the option was one).
+    """
+    for option, key in options.items():
+        section = key.partition(".")[0]
+        if section in tracker_cls.reads:
+            continue
+        own = tracker_cls.sample_count
+        hint = (f"; its sample count is {own} (set it in a configuration file, -c)" if own and own != key
+                and key.endswith("particles") else "")
+        raise ConfigError(f"{option}: --tracker {tracker_cls.name} does not read {key}{hint}")
+
+
+def _log_setup(name: str, tracker_cls: Any, setup: TrackingSetup, settings: Settings, video: Any) -> None:
     """What ``-v`` tells about a clip before it runs: what is tracked, where it starts, the sampling."""
     r = video.indices
-    log.info("%s: %s tracker on %s, frames %d-%d step %d (%d frames), %.3g frames/s", name, tracker, video.path,
-             r.start, r.stop - 1, r.step, len(r), video.fps)
+    log.info("%s: %s tracker on %s, frames %d-%d step %d (%d frames), %.3g frames/s", name, tracker_cls.name,
+             video.path, r.start, r.stop - 1, r.step, len(r), video.fps)
     log.info("%s: tracking %s; shape-space %s (%d components)", name, setup.source, setup.space.kind,
              setup.space.Nx)
     x0 = ", ".join(f"{n}={v:.3g}" for n, v in zip(setup.space.names, setup.X0))
     log.info("%s: initial shape X0: %s", name, x0)
-    if tracker == "condensation":
-        c = settings.condensation
-        log.info("%s: seed %d; samples %d falling to %d over %d frames; likelihood %s, init %s", name,
-                 settings.seed, c.initial_particles, c.particles, c.schedule_frames, c.likelihood, c.init)
-    elif tracker == "mht":
-        s = settings.mht
-        log.info("%s: seed %d; at most %d modes, %d seeds per mode, %d Gauss-Newton steps, merged within %g px; "
-                 "likelihood %s", name, settings.seed, s.modes, s.samples, s.iterations, s.merge_distance,
-                 settings.condensation.likelihood)
+    said = tracker_cls.describe(settings)
+    if said:
+        log.info("%s: %s", name, said)

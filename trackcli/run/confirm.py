@@ -5,7 +5,7 @@ colours are the object's (a panel striped in the shirt's blue, the background be
 leaf's edge and a disc of its colour) can be taken into the mask, and on one frame nothing
 tells it from a part of the object.  The frames that follow can: the object moves and the
 region stays where it was, or moves otherwise.  :func:`confirm` tracks the template of
-each distinct candidate mask of :func:`trackcli.shapes.draw.segment_candidates` over the
+each distinct candidate mask of :func:`trackcli.segment.grabcut.segment_candidates` over the
 drawn frame and the :data:`CONFIRM_FRAMES` - 1 after it with CONDENSATION and the default
 settings, and keeps the frame's own choice unless another candidate is clearly better held:
 
@@ -116,7 +116,7 @@ def trial(template: Any, frames: Sequence[Any], fps: float, index: int = 0) -> T
 def to_try(masks: Sequence[np.ndarray], chosen: int) -> list[int]:
     """The masks :func:`confirm` tracks: ``chosen`` first, then every other one whose IoU with
     each listed before it is at most :data:`SAME_MASK`."""
-    from trackcli.shapes.draw import mask_iou
+    from trackcli.segment.masks import mask_iou
 
     kept: list[int] = []
     for i in [chosen] + [j for j in range(len(masks)) if j != chosen]:

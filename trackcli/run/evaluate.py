@@ -64,7 +64,11 @@ Metrics (the usual OTB definitions)
 
 When the track and the truth cover different frames (a track that stops early, a truth
 file longer or shorter than the clip), :func:`coverage_notes` says so; ``trackcli eval``
-prints the notes as warnings, with the frames that were scored.
+prints the notes as warnings, with the frames that were scored.  :func:`mismatch_notes`
+adds what suggests the truth is of another clip: a track whose box meets the truth's on no
+frame, and, when the truth is a benchmark folder holding the frames, a track with frames
+past the clip's last (refused) or estimates that do not fit its frames
+(:func:`trackcli.run.checks.check_track_on_clip`).
 """
 
 from __future__ import annotations
@@ -76,7 +80,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from trackcli.errors import ConfigError, DataError
-from trackcli.io.truth import TRUTH_FILE_NAMES, GroundTruth, PathLike, Track, box_centres, load_track, load_truth
+from trackcli.io.truth import TRUTH_FILE_NAMES, GroundTruth, PathLike, Track, box_centres, load_track
+from trackcli.run.truth import load_truth
 
 log = logging.getLogger(__name__)
 
@@ -90,6 +95,7 @@ __all__ = [
     "box_centres",
     "box_iou",
     "coverage_notes",
+    "mismatch_notes",
     "polygon_iou",
     "evaluate",
     "format_table",
@@ -457,6 +463,38 @@ def coverage_notes(pred: Track, truth: GroundTruth, scores: FrameScores | None =
         what = (f"frames {int(scored[0])}-{int(scored[-1])}" + (f" step {scores.frame_step}" if scores.frame_step != 1 else "")
                 if scored.size else "no frame")
         notes.append(f"scored {scored.size} frames: {what}")
+    return notes
+
+
+def mismatch_notes(pred: Track, truth: GroundTruth, scores: FrameScores, truth_path: PathLike | None = None) -> list[str]:
+    """Notes (see the module docstring) when ``pred`` and the truth seem to be of different clips.
+
+    Raises
+    ------
+    DataError
+        The truth is a folder with the clip's frames and the track has frames past its last.
+    """
+    from pathlib import Path
+
+    notes: list[str] = []
+    folder = Path(truth_path) if truth_path is not None else None
+    if folder is not None and folder.is_dir():
+        from trackcli.errors import VideoError
+        from trackcli.io.video import open_video
+        from trackcli.run.checks import check_track_on_clip
+
+        try:
+            video = open_video(folder, fps=25.0)
+        except VideoError:  # a folder with the truth only
+            video = None
+        if video is not None:
+            with video:
+                points = pred.outline if pred.outline is not None else pred.centre[:, None, :]
+                notes += check_track_on_clip(pred.frame, points, width=video.width, height=video.height,
+                                             n_frames=video.n_total, track=pred.source, clip=str(folder))
+    if scores.frame.size > 1 and not np.any(scores.iou > 0):
+        notes.append(f"{pred.source} meets the true box on none of the {scores.frame.size} frames scored: "
+                     f"is {truth.source} the truth of another clip?")
     return notes
 
 

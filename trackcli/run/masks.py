@@ -174,3 +174,39 @@ def mask_files(folder: str | Path) -> list[Path]:
     if not files:
         raise InputError(f"{d}: no mask images (.png, ...)")
     return files
+
+
+#: The palette of DAVIS annotations: index 0 background (black), index 1 the object (dark red).
+DAVIS_PALETTE = ((0, 0, 0), (128, 0, 0))
+
+
+def encode_mask_png(mask: np.ndarray, *, palette: bool = False) -> bytes:
+    """A binary mask (H, W) as PNG bytes: grey 0/255, or with ``palette`` an 8-bit palette image
+    with the object at index 1, as the DAVIS annotations are (colours :data:`DAVIS_PALETTE`).
+
+    Both read back with :func:`read_mask` (and with any image library) as the same mask.
+    """
+    import zlib
+
+    m = np.asarray(mask, dtype=bool)
+    if m.ndim != 2 or m.size == 0:
+        raise DataError(f"a mask must be a non-empty 2-D array, got shape {m.shape}")
+    if not palette:
+        import cv2
+
+        ok, buf = cv2.imencode(".png", m.astype(np.uint8) * 255)
+        if not ok:
+            raise DataError("PNG encoding of a mask failed")
+        return buf.tobytes()
+    # OpenCV writes no palette images: the PNG chunks by hand (IHDR, PLTE, IDAT, IEND)
+    h, w = m.shape
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return (len(data).to_bytes(4, "big") + kind + data
+                + (zlib.crc32(kind + data) & 0xFFFFFFFF).to_bytes(4, "big"))
+
+    rows = np.zeros((h, w + 1), dtype=np.uint8)  # filter byte 0 (none) before each row
+    rows[:, 1:] = m
+    header = w.to_bytes(4, "big") + h.to_bytes(4, "big") + bytes([8, 3, 0, 0, 0])  # 8-bit, palette
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"PLTE", bytes(v for rgb in DAVIS_PALETTE for v in rgb))
+            + chunk(b"IDAT", zlib.compress(rows.tobytes(), 6)) + chunk(b"IEND", b""))

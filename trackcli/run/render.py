@@ -9,14 +9,22 @@ and image folders work alike.
 
 Three products, each written atomically (an interrupted run leaves nothing half-written):
 
-- an MP4 video (VP9 when this OpenCV can encode it, else MPEG-4 part 2), one frame per
-  selected frame;
+- a video, one frame per selected frame: an ``.mp4`` is H.264 (High profile, 4:2:0, even
+  sides, index at the front) written with PyAV (:class:`trackcli.io.encode.H264Writer`),
+  which plays in browsers and common players and encodes faster than the tracker tracks;
+  OpenCV's VP9 (or MPEG-4 part 2) only when PyAV's H.264 encoder is missing; ``.avi``
+  is Motion JPEG, ``.mkv``/``.webm`` VP9 and ``.mov``/``.m4v`` MPEG-4 part 2, through OpenCV;
 - a folder of PNG frames ``frame_000123.png`` (the original frame index);
 - a contact sheet: N frames spread evenly over the selection, shrunk and tiled into one PNG,
   each labelled with its frame number.
 
 Colours (BGR): estimate orange-red, ground truth green, "lost" frames with the outline dashed
 in grey.
+
+A track must fit the clip it is drawn on (:func:`trackcli.run.checks.check_track_on_clip`): one
+with frames past the clip's last is refused, and estimates that lie outside its frames, or all
+in a corner of them (a track made on a smaller clip), are warned about.  Masks and VOT region
+lines of a track CSV are written by :func:`trackcli.run.export.export_track`.
 """
 
 from __future__ import annotations
@@ -42,7 +50,7 @@ LOST_BGR = (160, 160, 160)
 TRUTH_BGR = (60, 200, 40)
 TEXT_BGR = (255, 255, 255)
 
-#: Codecs tried, in order, for the MP4 (OpenCV fourcc).  VP9 is small and plays in browsers.
+#: Codecs tried, in order, for an MP4 through OpenCV (fourcc), when PyAV's H.264 encoder is missing.
 VIDEO_CODECS = ("vp09", "mp4v")
 #: the codecs tried for an ``.avi`` output (an AVI holds no VP9: OpenCV would print its fallback)
 AVI_CODECS = ("MJPG", "XVID")
@@ -213,8 +221,8 @@ def contact_sheet(tiles: list[np.ndarray], *, columns: int | None = None, gap: i
 
 
 class _VideoOut:
-    """A video (MP4, or AVI for an ``.avi`` name) written under a temporary name and renamed
-    into place on success."""
+    """A video written under a temporary name and renamed into place on success: H.264 through
+    PyAV for an ``.mp4`` (when PyAV has the encoder), else OpenCV's codecs for the ending."""
 
     def __init__(self, path: Path, fps: float, size: tuple[int, int]):
         import cv2
@@ -229,6 +237,17 @@ class _VideoOut:
         except OSError as exc:
             raise InputError(f"{path}: cannot write ({exc.strerror or exc})") from None
         self.codec = None
+        self._h264 = None
+        if path.suffix.lower() == ".mp4":
+            from trackcli.io.encode import EncoderUnavailable, H264Writer
+
+            try:
+                self._h264 = H264Writer(path, fps, size)
+                self.codec = H264Writer.codec
+                return
+            except EncoderUnavailable as exc:
+                log.warning("%s: %s; writing the MP4 with OpenCV instead (VP9, which some players cannot play)",
+                            path, exc)
         codecs = SUFFIX_CODECS.get(path.suffix.lower(), VIDEO_CODECS)
         for code in codecs:
             writer = cv2.VideoWriter(str(self.tmp), cv2.VideoWriter_fourcc(*code), fps, size)
@@ -241,9 +260,15 @@ class _VideoOut:
             raise DataError(f"{path}: OpenCV cannot write this video here (tried {', '.join(codecs)})")
 
     def write(self, image: np.ndarray) -> None:
-        self.writer.write(image)
+        if self._h264 is not None:
+            self._h264.write(image)
+        else:
+            self.writer.write(image)
 
     def close(self, ok: bool) -> None:
+        if self._h264 is not None:
+            self._h264.close(ok)
+            return
         self.writer.release()
         if ok:
             os.replace(self.tmp, self.path)
@@ -287,6 +312,7 @@ def render(
     label: bool = True,
     progress: Callable[[int], None] | None = None,
     on_open: Callable[[int], None] | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> RenderResult:
     """Draw the track of ``track_csv`` on the frames of ``clip`` and write ``output``.
 
@@ -313,11 +339,15 @@ def render(
         Called with 1 per frame read.
     on_open : callable, optional
         Called once with the number of frames that will be read (to size a progress bar).
+    warn : callable, optional
+        Called with each one-line note about a track that does not fit the clip (default: the log).
 
     Raises
     ------
     InputError
         The CSV has no outline columns; the output folder exists with other files in it.
+    DataError
+        The track has frames past the clip's last.
     ConfigError
         A bad selection or option.
     VideoError
@@ -346,11 +376,11 @@ def render(
             raise DataError(f"{track_csv} has no estimate in the selected frames "
                             f"{video.indices.start}-{video.indices.stop - 1} of {clip}; "
                             f"the track covers frames {d_start}-{d_end - 1}")
-        c = track.centroid[np.all(np.isfinite(track.centroid), axis=1)]
-        outside = (c[:, 0] < 0) | (c[:, 1] < 0) | (c[:, 0] > video.width) | (c[:, 1] > video.height)
-        if c.size and outside.mean() > 0.5:
-            log.warning("%s: %d of %d estimates lie outside the %dx%d frames of %s; was the track made on "
-                        "another clip?", track_csv, int(outside.sum()), len(c), video.width, video.height, clip)
+        from trackcli.run.checks import check_track_on_clip
+
+        for note in check_track_on_clip(track.frame, track.outline, width=video.width, height=video.height,
+                                        n_frames=video.n_total, track=str(track_csv), clip=str(clip)):
+            (warn or log.warning)(note)
         if on_open is not None:
             on_open(len(video))
         scale = min(1.0, tile_width / video.width) if kind == "sheet" else 1.0

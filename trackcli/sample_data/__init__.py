@@ -53,6 +53,8 @@ coverage, so the rendered edge lies within a few hundredths of a pixel of the tr
 
 ``<clip>.outline.json`` holds the base outline (``points``), ``format: 1``, the clip's frame
 rate, size, frame count and seed, which object is which, and the parameters of the motion.
+:func:`true_outline` places it for one row of the truth, :func:`place_outlines` for every row
+(as ``trackcli eval`` does, through :mod:`trackcli.run.truth`).
 
 Determinism: the truth and outline files depend only on the seed and the frame count and
 are byte-identical between runs; each clip draws from its own stream
@@ -64,7 +66,7 @@ first ``n_frames`` frames of the full clip.  Videos are written with OpenCV's VP
 from __future__ import annotations
 
 from trackcli.sample_data.common import N_OUTLINE_POINTS, CLIP_NAMES, DEFAULT_SEED, FPS, FRAME_SIZE, TRUTH_COLUMNS
-from trackcli.sample_data.geometry import circle_outline, head_and_shoulders, polygon_area, polygon_centroid, similarity, true_outline
+from trackcli.sample_data.geometry import circle_outline, head_and_shoulders, place_outlines, polygon_area, polygon_centroid, similarity, true_outline
 from trackcli.sample_data.truth import Outline, Truth, load_outline, load_truth
 from trackcli.sample_data.write import clip_truth, default_n_frames, generate, make_bouncing_ball, make_test, make_three_heads, make_train, render_frames, write_clip
 
@@ -88,6 +90,7 @@ __all__ = [
     "make_test",
     "make_three_heads",
     "make_train",
+    "place_outlines",
     "polygon_area",
     "polygon_centroid",
     "render_frames",

@@ -11,7 +11,7 @@ from scipy.interpolate import CubicSpline
 from trackcli.shapes.spline import polygon_area_centroid
 from trackcli.errors import ConfigError
 from trackcli.sample_data.common import N_OUTLINE_POINTS
-from trackcli.sample_data.truth import Outline
+from trackcli.sample_data.truth import Outline, load_outline
 
 
 # =============================================================================================
@@ -79,6 +79,15 @@ def true_outline(truth_row, base) -> np.ndarray:
     except (KeyError, IndexError, TypeError, ValueError) as exc:
         raise ValueError(f"truth row needs numeric tx, ty, angle and scale: {exc}") from None
     return similarity(pts, tx, ty, angle, scale)
+
+
+def place_outlines(json_path, rows) -> np.ndarray:
+    """The true outline of every row of a truth CSV: the base outline of ``json_path`` (a
+    ``<clip>.outline.json``, :func:`load_outline`) placed in each row's pose
+    (:func:`true_outline`); shape ``(N, P, 2)``.  A row without a numeric pose raises
+    ``ValueError``."""
+    base = load_outline(json_path)
+    return np.stack([true_outline(row, base) for row in rows])
 
 
 def _resample_closed(dense: np.ndarray, n: int) -> np.ndarray:

@@ -14,6 +14,15 @@ A new tracker subclasses :class:`Tracker`, implements :meth:`Tracker.step`, and 
 by name in :data:`trackcli.trackers.TRACKERS`.  Values it reports beyond the common fields
 go in :attr:`FrameResult.extra` under the names of :attr:`Tracker.extra_columns`; they
 become CSV columns and time series of the recording.
+
+What it supports it declares on its class (the *contract*, read by the runner,
+:func:`trackcli.run.clips.track_clip`, which has no branch on a tracker's name):
+:attr:`Tracker.smoother` (``--smooth``), :attr:`Tracker.mixed_dynamics`,
+:attr:`Tracker.sample_count`, :attr:`Tracker.reads` (command-line options that set other
+sections are refused), :attr:`Tracker.needs_template`, :meth:`Tracker.starts_at_template` and
+:meth:`Tracker.describe` (what ``-v`` says of its set-up).  A tracker that weighs curves asks
+its :class:`~trackcli.observe.observation.Observation` for their log-likelihoods
+(:attr:`Tracker.observation_terms` says which terms may take part).
 """
 
 from __future__ import annotations
@@ -26,10 +35,9 @@ from typing import Any, ClassVar, Iterable, Iterator
 
 import numpy as np
 
-from trackcli.settings import MeasurementSettings, Settings
 from trackcli.observe import measure
-from trackcli.observe.discriminant import LazyColourMap
-from trackcli.observe.scene import in_first_light
+from trackcli.observe.appearance import LazyColourMap
+from trackcli.settings import MeasurementSettings, Settings
 from trackcli.shapes.shape_space import ShapeSpace
 
 
@@ -116,7 +124,7 @@ class FrameData:
     image: np.ndarray
     features: np.ndarray
     colour: np.ndarray | LazyColourMap | None = None
-    """The colour log-ratio map of the appearance model (:meth:`trackcli.observe.discriminant.Appearance.colour_map`);
+    """The colour log-ratio map of the appearance model (:meth:`trackcli.observe.appearance.Appearance.colour_map`);
     None: made when the frame is tracked."""
     still: np.ndarray | None = None
     """Where the frame kept the first frame's colours (:meth:`trackcli.observe.scene.StillScene.compare`);
@@ -176,14 +184,48 @@ class Tracker(ABC):
     extra_columns: list[str] = []
     #: what log messages call the clip (set by whoever runs the tracker; empty: nothing)
     label: str = ""
-    #: the appearance model learned on the first frame, when the tracker has one
-    #: (:class:`trackcli.observe.presence.Presence`; None before): :meth:`prepare` makes the
-    #: colour map with it
-    judge: Any = None
-    #: the first frame, to tell later frames' still scene by, when the tracker uses it
-    #: (:class:`trackcli.observe.scene.StillScene`; None before the first frame or unused):
-    #: :meth:`prepare` compares frames with it
-    still_scene: Any = None
+    #: the observation model, when the tracker has one
+    #: (:class:`trackcli.observe.observation.Observation`): :meth:`prepare` makes the frame's
+    #: colour map (and comparison with the first frame) with it once it has learned the object
+    observation: Any = None
+
+    # -- the contract: what the tracker supports, read by the runner ---------------------------
+
+    #: the offline smoother of its track (``--smooth``), ``module:class`` taking ``(space,
+    #: dynamics)`` (:mod:`trackcli.trackers.smoothing`), or None: ``--smooth`` is refused
+    smoother: ClassVar[str | None] = None
+    #: why ``--smooth`` is refused (when :attr:`smoother` is None)
+    no_smoother: ClassVar[str] = "its results carry nothing a smoother can use"
+    #: it tracks with a mixed-state model (a motion label per sample, 001 §8)
+    mixed_dynamics: ClassVar[bool] = False
+    #: the dotted setting of its number of samples (e.g. ``condensation.particles``), or None
+    sample_count: ClassVar[str | None] = None
+    #: the sections of the settings it reads beyond those of every run (video, shape-space,
+    #: dynamics, placement, outline, output): a command-line option that sets another is refused
+    reads: ClassVar[tuple[str, ...]] = ("measurement",)
+    #: it needs a structure template (``draw --parts``), given to it as ``template`` and ``template_path``
+    needs_template: ClassVar[bool] = False
+    #: the observation terms (:data:`trackcli.observe.terms.TERMS`) that may take part in its
+    #: weights; None: all of them
+    observation_terms: ClassVar[tuple[str, ...] | None] = None
+
+    @classmethod
+    def starts_at_template(cls, settings: Settings) -> bool:
+        """Whether it starts where the template was drawn (else, e.g., from a steady state)."""
+        return True
+
+    @classmethod
+    def describe(cls, settings: Settings) -> str:
+        """What ``-v`` says of its set-up before a clip runs (the seed, the sampling, the
+        likelihood); empty: nothing."""
+        return ""
+
+    @classmethod
+    def make_smoother(cls, space: ShapeSpace, dynamics: Any) -> Any:
+        """The smoother of :attr:`smoother` for one clip, or None."""
+        from trackcli.registry import load
+
+        return None if cls.smoother is None else load(cls.smoother)(space, dynamics)
 
     def __init__(self, space: ShapeSpace, dynamics: Any, settings: Settings, rng: np.random.Generator | None = None,
                  *, X0: np.ndarray | None = None):
@@ -206,28 +248,15 @@ class Tracker(ABC):
 
         Safe to call from another thread while :meth:`step` runs (``track`` calls it in the
         thread that decodes ahead, so that these whole-frame images are made while the
-        previous frame is tracked): it reads only settings and the appearance model, which
-        do not change after the first frame.  The result is the same wherever it is made.
+        previous frame is tracked): it reads only settings and the observation model's
+        appearance, which do not change after the first frame
+        (:meth:`trackcli.observe.observation.Observation.frame_maps`).  The result is the same
+        wherever it is made.
         """
         m = self.settings.measurement
-        judge = self.judge
-        scene = self.still_scene
-        still, exposure = scene.measure(frame.image) if scene is not None else (None, None)
-        colour = None
-        if judge is not None:  # made where the tracker reads it (colour frames), else whole
-            colour = colour_map(judge.app, frame.image, exposure)
+        colour, still = self.observation.frame_maps(frame.image) if self.observation is not None else (None, None)
         return FrameData(int(frame.index), float(frame.time), frame.image, feature_image(frame.image, m), colour,
                          still, getattr(frame, "encoded", None))
-
-
-def colour_map(app: Any, image: np.ndarray, exposure: tuple[np.ndarray, np.ndarray] | None = None
-               ) -> np.ndarray | LazyColourMap:
-    """The colour map of ``image`` for the appearance model ``app``, read in the first frame's
-    exposure when ``exposure`` is given (:func:`trackcli.observe.scene.in_first_light`): made
-    where the tracker reads it on colour frames (:class:`LazyColourMap`), whole on grey ones."""
-    if app.grey:
-        return app.colour_map(in_first_light(image, exposure))
-    return LazyColourMap(app, image, exposure)
 
 
 def run_tracker(tracker: Tracker, frames: Iterable[Any], measurement: MeasurementSettings | None = None,
@@ -239,9 +268,10 @@ def run_tracker(tracker: Tracker, frames: Iterable[Any], measurement: Measuremen
     (:meth:`Tracker.prepare`); ``measurement``, when given, replaces the tracker's
     measurement settings for the feature image.  With ``refiner``
     (:class:`trackcli.observe.region.OutlineRefiner`), each result carries the outline refined
-    in the full image from its estimate, and a frame the tracker calls lost is reported held
-    when the refined region vouches for it (:meth:`~trackcli.observe.region.OutlineRefiner.holds`;
-    the tracker's own course, e.g. its re-acquisition, follows its own verdict).
+    in the full image from its estimate: a stage after the tracker's step, which changes nothing
+    of the estimate or the weights; a frame the tracker calls lost is reported held when the
+    refined region vouches for it (:meth:`~trackcli.observe.region.OutlineRefiner.holds`; the
+    tracker's own course, e.g. its re-acquisition, follows its own verdict).
     """
     import dataclasses
 

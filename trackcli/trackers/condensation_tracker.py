@@ -1,44 +1,47 @@
 """CONDENSATION over curve shape (AC ch. 12, Fig 12.6): select, predict, weight.
 
 The filter step itself is :func:`trackcli.trackers.condensation.step`; this module sets it
-up for a clip: the initial sample set, the observation model
-(:mod:`trackcli.observe.models`), the motion prior's jumps (:func:`translation_jumps`),
-re-acquisition by importance sampling after loss
-(:func:`trackcli.observe.discriminant.reacquisition_proposal`), and the per-frame summary.
+up for a clip: the initial sample set, the observation model that weighs the samples
+(:class:`trackcli.observe.observation.Observation`), the motion prior's jumps
+(:func:`translation_jumps`, settings ``jumps``), re-acquisition by importance sampling after
+loss (:func:`trackcli.observe.reacquire.reacquisition_proposal`, settings ``reacquire``), and
+the per-frame summary.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections import deque
 from typing import Any, Iterable, Iterator
 
 import numpy as np
 
-from trackcli.dynamics.mixed import MixedDynamics, MixedPrediction
+from trackcli.dynamics.mixed_dynamics import MixedDynamics, MixedPrediction
 from trackcli.errors import ConfigError
+from trackcli.observe import measure, reacquire
+from trackcli.observe.discriminant import normals_with_features
+from trackcli.observe.observation import Observation
 from trackcli.settings import CondensationSettings, MeasurementSettings, Settings
-from trackcli.observe import discriminant as observe
-from trackcli.observe import measure
-from trackcli.observe.models import observation_model
-from trackcli.observe.presence import Presence
-from trackcli.observe.scene import StillScene
 from trackcli.shapes.outline import contour_summary, measurement_sampler
 from trackcli.shapes.shape_space import ShapeSpace
 from trackcli.trackers import condensation as cond
-from trackcli.trackers.base import FrameData, FrameResult, LossRecord, Tracker, colour_map, run_tracker
+from trackcli.trackers.base import FrameData, FrameResult, LossRecord, Tracker, run_tracker
 
 log = logging.getLogger(__name__)
 
 
 BRAKE_SPREAD = 0.3  # isotropic part of a braking jump, as a fraction of the jump size (translation_jumps)
 #: half-width, in object sizes, of the square about the last held position searched at once when
-#: lost; it grows by condensation.reacquire_speed object sizes per second lost, or by
+#: lost; it grows by reacquire.speed object sizes per second lost, or by
 #: REACQUIRE_PACE times the fastest the object was seen to move, if that is more
 REACQUIRE_NEAR = 2.0
 REACQUIRE_PACE = 2.0
 #: held frames whose centroids give the object's recent speed
 RECENT_HELD = 25
+#: Points on each particle contour drawn in the recording (equally spaced in the spline parameter;
+#: thin lines, many of them: a coarse polygon looks the same and takes a half of the space).
+PARTICLE_POINTS = 12
 
 
 class LastHeld:
@@ -116,7 +119,7 @@ def translation_jumps(fraction: float, rms: float, brake: float = 0.0):
     add up to more than 1.
     """
     if fraction + brake > 1:
-        raise ConfigError(f"condensation.jump_fraction ({fraction:g}) and jump_brake ({brake:g}) are shares of "
+        raise ConfigError(f"jumps.fraction ({fraction:g}) and jumps.brake ({brake:g}) are shares of "
                           "the samples: together at most 1")
     if rms <= 0 or fraction + brake <= 0:
         return None
@@ -153,45 +156,43 @@ def _chain(first, second):
 class CondensationTracker(Tracker):
     """CONDENSATION over ``frames`` (AC Fig 12.6).
 
-    The observation model is ``condensation.likelihood`` (:mod:`trackcli.observe.models`):
-    ``"discriminant"`` (the default), ``"clutter"`` (AC eq 12.2) or ``"truncated"``
-    (Isard & Blake 1996 eqs 10–11).
+    The samples are weighed by the observation model
+    (:class:`~trackcli.observe.observation.Observation`, settings ``observation``): the edge
+    likelihood ``observation.likelihood``, ``"discriminant"`` (the default), ``"clutter"`` (AC
+    eq 12.2) or ``"truncated"`` (Isard & Blake 1996 eqs 10–11), plus the other terms the
+    settings switch on (:mod:`trackcli.observe.terms`).
 
     The samples' weights take the discriminant's likelihood to the power
-    ``discriminant_power`` (0.5 by default; the clutter and truncated models as they are).
-    The discriminant multiplies the evidence of its normals as if independent; neighbouring
-    normals see the same edges and colour regions, and the template never fits the object
-    exactly, so the product is overconfident: on the 48 clips of ``bench/other_clips.py``
-    seeds 0–3 the estimate's error about its clip's median offset was a median 4.1 times
-    the posterior's standard deviation.  Tempered, a look-alike that scores a little higher
-    no longer takes all the weight from where the motion model expects the object, and the
-    importance weights of the re-acquisition keep their say.  The confidence and the
-    posterior score use the likelihood itself.
+    ``observation.discriminant_power`` (0.5 by default; the clutter and truncated models as
+    they are).  The discriminant multiplies the evidence of its normals as if independent;
+    neighbouring normals see the same edges and colour regions, and the template never fits
+    the object exactly, so the product is overconfident: on the 48 clips of
+    ``bench/other_clips.py`` seeds 0–3 the estimate's error about its clip's median offset was
+    a median 4.1 times the posterior's standard deviation.  Tempered, a look-alike that scores
+    a little higher no longer takes all the weight from where the motion model expects the
+    object, and the importance weights of the re-acquisition keep their say.  The confidence
+    and the posterior score use the likelihood itself.
 
-    Every frame's confidence and ``lost`` verdict come from
-    :class:`~trackcli.observe.presence.Presence`.  While the tracker recovers from a loss (by
-    the :class:`~trackcli.trackers.base.LossRecord` rule below) the confidence is judged
-    against the stricter centre ``measurement.reacquired_centre``: a place found after a loss
-    is a priori less likely to be the object than one followed from frame to frame.
+    Every frame's confidence and ``lost`` verdict come from the observation model
+    (:meth:`~trackcli.observe.observation.Observation.confidence`).  While the tracker recovers
+    from a loss (by the :class:`~trackcli.trackers.base.LossRecord` rule below) the confidence
+    is judged against the stricter centre ``measurement.reacquired_centre``: a place found
+    after a loss is a priori less likely to be the object than one followed from frame to frame.
 
     The motion prior is a mixture of the AR(2) prediction and jumps
-    (:func:`translation_jumps`); once the tracker has been lost on
-    ``reacquire_after`` of the last ``2 reacquire_after - 1`` frames
+    (:func:`translation_jumps`, settings ``jumps``); once the tracker has been lost on
+    ``reacquire.after`` of the last ``2 after - 1`` frames
     (:class:`~trackcli.trackers.base.LossRecord`), a share of the samples is drawn from the colour
-    proposal of :func:`trackcli.observe.discriminant.reacquisition_proposal` with its
+    proposal of :func:`trackcli.observe.reacquire.reacquisition_proposal` with its
     importance weights, from the colour peaks in a square about the centroid of the last frame
     held (:class:`LastHeld`): :data:`REACQUIRE_NEAR` object sizes from it at once, growing by
-    ``reacquire_speed`` object sizes per second lost, or by :data:`REACQUIRE_PACE` times the
+    ``reacquire.speed`` object sizes per second lost, or by :data:`REACQUIRE_PACE` times the
     fastest the object was seen to move if that is more (0: the whole frame at once).
 
-    With the discriminant, every frame is also compared with the first
-    (:class:`~trackcli.observe.scene.StillScene`): a sample whose outline lies on pixels that
-    kept the first frame's colours (a look-alike standing in the scene, with a still camera)
-    loses ``still_weight`` times the template's score on its first frame, in proportion to
-    its stillness, and the confidence is multiplied by one less the estimate's stillness.
-    When the light changed over the whole scene, the colour model is read on the frame
-    brought back to the first frame's exposure (:meth:`~trackcli.observe.scene.StillScene.measure`),
-    whatever ``still_weight``.
+    With the discriminant, every frame is also compared with the first (the ``still`` term,
+    :mod:`trackcli.observe.terms.still`); when the light changed over the whole scene, the
+    colour model is read on the frame brought back to the first frame's exposure
+    (:meth:`~trackcli.observe.scene.StillScene.measure`), whatever ``observation.still_weight``.
 
     The sample set starts either as a Gaussian about ``X0`` (``init = "template"``, AC §12.4,
     "positioned by hand") or from the steady state of the motion model (``"steady_state"``,
@@ -203,10 +204,10 @@ class CondensationTracker(Tracker):
     On the first frame the initial samples are weighted without prediction; afterwards every
     frame is select → predict → weight.
 
-    With mixed-state dynamics (:class:`~trackcli.dynamics.mixed.MixedDynamics`, 001 §8)
+    With mixed-state dynamics (:class:`~trackcli.dynamics.mixed_dynamics.MixedDynamics`, 001 §8)
     every sample also carries a motion label; the prediction draws it from the transition
     matrix and moves the sample with that label's model
-    (:class:`~trackcli.dynamics.mixed.MixedPrediction`), and each frame
+    (:class:`~trackcli.dynamics.mixed_dynamics.MixedPrediction`), and each frame
     reports the posterior of every label in ``extra`` (``p_<label>``).
 
     ``hist_range`` is the range of horizontal translation ``tx`` covered by the histogram
@@ -214,12 +215,29 @@ class CondensationTracker(Tracker):
     """
 
     name = "condensation"
+    smoother = "trackcli.trackers.smoothing:ParticleSmoother"
+    mixed_dynamics = True
+    sample_count = "condensation.particles"
+    reads = ("measurement", "observation", "condensation", "reacquire", "jumps")
+
+    @classmethod
+    def starts_at_template(cls, settings: Settings) -> bool:
+        # a sample set drawn from the steady state does not start at the template
+        return settings.condensation.init == "template"
+
+    @classmethod
+    def describe(cls, settings: Settings) -> str:
+        c = settings.condensation
+        return (f"seed {settings.seed}; samples {c.initial_particles} falling to {c.particles} over "
+                f"{c.schedule_frames} frames; likelihood {settings.observation.likelihood}, init {c.init}")
 
     def __init__(self, space: ShapeSpace, dynamics: Any, settings: Settings, rng: np.random.Generator | None = None,
                  *, X0: np.ndarray | None = None, hist_range: tuple[float, float] | None = None):
         super().__init__(space, dynamics, settings, rng, X0=X0)
         c = settings.condensation
         self.sampler = measurement_sampler(space, settings.measurement.n_normals)
+        # the particle contours of the recording are drawn thin and many: a few points each
+        self.display_sampler = measurement_sampler(space, min(settings.measurement.n_normals, PARTICLE_POINTS))
         self.schedule = cond.sample_size_schedule(c.initial_particles, c.particles, c.schedule_frames)
         n0 = self.schedule(0)
         if c.init == "template":
@@ -244,22 +262,18 @@ class CondensationTracker(Tracker):
         if self.mixed is not None:
             self.labels = MixedPrediction(self.mixed, particles.n, self.rng)
             self.extra_columns = [f"p_{name}" for name in self.mixed.names]
-        self.observation = observation_model(c.likelihood, settings.measurement, c)
+        self.observation = Observation(settings, space, self.sampler, terms=self.observation_terms)
         self.hist_range = hist_range
         self.edges: np.ndarray | None = None
-        self.judge: Presence | None = None
         self.jumps = None
-        self.scale_search: observe.ScaleSearch | None = None
+        self.scale_search: reacquire.ScaleSearch | None = None
         self.centre = space.origin + self.X0[:2]
-        self.losses = LossRecord(c.reacquire_after)
+        self.losses = LossRecord(settings.reacquire.after)
         self.last_held = LastHeld()
         self.k = 0
         self.threads = c.threads  # 0: automatic (see trackcli.trackers.condensation.weigh)
-        # the compiled discriminant releases the GIL; the numpy models gain from threads only at large N
-        self.parallel_min = cond.PARALLEL_MIN if c.likelihood == "discriminant" else cond.PARALLEL_MIN_NUMPY
-        # the weights take the discriminant to the power discriminant_power (tempered); the
-        # papers' models as they are
-        self.power = c.discriminant_power if c.likelihood == "discriminant" else 1.0
+        # compiled terms release the GIL; the numpy models gain from threads only at large N
+        self.parallel_min = cond.PARALLEL_MIN if self.observation.compiled else cond.PARALLEL_MIN_NUMPY
         # the confidence's centre while recovering from a loss (never below the usual one)
         m = settings.measurement
         self.recovery_centre = max(m.presence_centre, m.reacquired_centre)
@@ -270,92 +284,59 @@ class CondensationTracker(Tracker):
             ox = float(space.origin[0])
             self.hist_range = (-ox, frame.image.shape[1] - ox)
         self.edges = np.linspace(self.hist_range[0], self.hist_range[1], c.histogram_bins + 1)
-        self.judge = Presence.learn(frame.image, frame.features, space, self.sampler, self.X0,
-                                    self.settings.measurement, c)
-        self.observation.start(frame.image, frame.features, space, self.sampler, self.X0, presence=self.judge)
-        where = f"{self.label}: " if self.label else ""
-        area = self.judge.area
-        if area is not None:
-            log.info("%sletterbox or pillarbox bars: the picture is x %d-%d, y %d-%d; the bars count as "
-                     "beyond the frame's edge", where, area[0], area[2] - 1, area[1], area[3] - 1)
-        if self.judge.app.grey:
-            log.info("%sframe %d has no colour: the colour model is a histogram of %d grey levels x %d levels "
-                     "of local texture", where, frame.index, observe.GREY_BINS, observe.TEXTURE_BINS)
-        if not self.judge.reference > 0:
-            log.warning("%sthe template scores %.2f per normal on frame %d, no more object-like than clutter: "
-                        "the lost verdict and the confidence will be unreliable (a tighter outline, or the "
-                        "object on another frame, may do better)", where, self.judge.reference, frame.index)
-        if c.likelihood == "discriminant":  # the still scene's penalty, and the exposure
-            poly, _, _ = contour_summary(space, self.X0)
-            own = observe.polygon_mask(poly, frame.image.shape)  # the object's place: never judged
-            self.still_scene = StillScene(frame.image, own, self.judge.app.size, area=area)
-            self.still_penalty = c.still_weight * self.settings.measurement.n_normals * max(self.judge.reference, 0.5)
-        self.jumps = translation_jumps(c.jump_fraction, c.jump_size * self.judge.app.size, c.jump_brake)
+        self.observation.label = self.label
+        self.observation.start(frame, self.X0)
+        j = self.settings.jumps
+        self.jumps = translation_jumps(j.fraction, j.size * self.observation.presence.app.size, j.brake)
         self.scale_search = self._scale_search()
 
     def _proposal(self, ev: Any, frame: FrameData):
-        """The motion prior's jumps, and once lost on ``reacquire_after`` of the last
-        ``2 reacquire_after - 1`` frames (:class:`LossRecord`) the colour proposal."""
-        c = self.settings.condensation
-        if not (c.reacquire and self.losses.reacquire):
+        """The motion prior's jumps, and once lost on ``reacquire.after`` of the last
+        ``2 after - 1`` frames (:class:`LossRecord`) the colour proposal."""
+        r = self.settings.reacquire
+        if not (r.enabled and self.losses.reacquire):
             return self.jumps
-        size = self.judge.app.size
-        window = self.last_held.window(frame.time, size, c.reacquire_speed) if c.reacquire_speed > 0 else None
-        peaks, strengths = observe.colour_peaks(ev.cmap, size, window=window)
-        reacquire = observe.reacquisition_proposal(
+        size = self.observation.presence.app.size
+        window = self.last_held.window(frame.time, size, r.speed) if r.speed > 0 else None
+        peaks, strengths = reacquire.colour_peaks(ev.cmap, size, window=window)
+        proposal = reacquire.reacquisition_proposal(
             peaks, strengths, self.space.origin, size, (frame.image.shape[1], frame.image.shape[0]),
-            fraction=c.reacquire_fraction, scale=self.scale_search, window=window)
-        return self.jumps if reacquire is None else _chain(self.jumps, reacquire)
+            fraction=r.fraction, scale=self.scale_search, window=window)
+        return self.jumps if proposal is None else _chain(self.jumps, proposal)
 
-    def _scale_search(self) -> observe.ScaleSearch | None:
+    def _scale_search(self) -> reacquire.ScaleSearch | None:
         """The re-acquisition's scale search, or None: not asked for, a space without scale,
         or a template whose presence score on its first frame is below
-        ``reacquire_scale_reference``."""
-        c, space = self.settings.condensation, self.space
-        if (c.reacquire_scale <= 1 or space.base_kind == "translation"
-                or not self.judge.reference >= c.reacquire_scale_reference):  # NaN: no reference
+        ``reacquire.scale_reference``."""
+        r, space = self.settings.reacquire, self.space
+        if (r.scale <= 1 or space.base_kind == "translation"
+                or not self.observation.presence.reference >= r.scale_reference):  # NaN: no reference
             return None
 
         def log_scale(X: np.ndarray) -> np.ndarray:
             return np.log(np.maximum(space.pose(X)[:, 3], 1e-9))
 
-        return observe.ScaleSearch(log_scale, space.scaled, c.reacquire_scale)
+        return reacquire.ScaleSearch(log_scale, space.scaled, r.scale)
 
     def step(self, frame: FrameData) -> FrameResult:
         c, m, space = self.settings.condensation, self.settings.measurement, self.space
-        if self.judge is None:
+        obs = self.observation
+        if obs.presence is None:
             self._start(frame)
-        judge = self.judge
-        colour, still = frame.colour, frame.still
-        if self.k > 0 and self.still_scene is not None and (colour is None or still is None):
-            # not made by prepare (the frame was made before the appearance was learned)
-            still, exposure = self.still_scene.measure(frame.image)
-            colour = colour_map(judge.app, frame.image, exposure)
-        ev = judge.evidence(frame.image, frame.features, self.centre, colour)
+        ev = obs.prepare(frame, self.centre)
         fimg = ev.fimg  # without letterbox bars
-        self.observation.prepare(frame.image, fimg, ev)
-
-        # where the frame kept the first frame's colours
-        scene = self.still_scene if self.k > 0 and c.still_weight > 0 else None
-
-        def loglik(X: np.ndarray) -> np.ndarray:
-            pts, nrm = space.points_normals(X, self.sampler)
-            ll = self.observation.log_likelihood(pts, nrm)
-            if scene is not None:
-                ll = ll - self.still_penalty * scene.stillness(still, pts, nrm)
-            return ll
 
         if self.k == 0:
-            ll = loglik(self.particles.cur)
-            particles = cond.ParticleSet(self.particles.prev, self.particles.cur, self.power * ll)
+            ll = obs.log_likelihood(self.particles.cur)
+            particles = cond.ParticleSet(self.particles.prev, self.particles.cur, obs.power * ll)
             ess = particles.ess
             ancestry = particles
         else:
-            particles, info = cond.step(self.particles, self.dynamics, loglik, self.rng, n_out=self.schedule(self.k),
-                                        scheme=c.resampling, ess_threshold=c.ess_threshold,
-                                        propose=self._proposal(ev, frame), threads=self.threads,
-                                        parallel_min=self.parallel_min,
-                                        motion=self.labels if self.mixed is not None else None, power=self.power)
+            particles, info = cond.step(self.particles, self.dynamics, obs.log_likelihood, self.rng,
+                                        n_out=self.schedule(self.k), scheme=c.resampling,
+                                        ess_threshold=c.ess_threshold, propose=self._proposal(ev, frame),
+                                        threads=self.threads, parallel_min=self.parallel_min,
+                                        motion=self.labels if self.mixed is not None else None, power=obs.power)
             ess = info.ess
             ll = info.loglik
             ancestry = cond.ParticleSet(info.parent_shapes, particles.cur, particles.log_w)
@@ -367,19 +348,15 @@ class CondensationTracker(Tracker):
         X_std = np.sqrt(np.maximum(w @ (dev * dev), 0.0))
         contour, centroid, bbox = contour_summary(space, X)
         pts, nrm = space.points_normals(X, self.sampler)
-        spread = float(np.sqrt(X_std[0] ** 2 + X_std[1] ** 2)) / judge.app.size
+        spread = float(np.sqrt(X_std[0] ** 2 + X_std[1] ** 2)) / obs.presence.app.size
         # the evidence the posterior puts on the object: the weighted mean of the samples'
-        # scores per normal (the discriminant only; the others are not in its units)
-        held = w > 0
-        discriminant = c.likelihood == "discriminant"
-        post = float(w[held] @ ll[held]) / m.n_normals if discriminant else None
+        # scores per normal (in the presence score's units only)
+        post = obs.posterior_score(w, ll)
         # recovering from a loss, the place the samples found must look more like the object
         # than one followed from frame to frame does (a stricter centre of the confidence)
         strict = self.recovery_centre if self.losses.reacquire else None
-        conf, log_d, score_mean = judge.confidence(ev, pts, nrm, spread, posterior_score=post, centre=strict)
-        if scene is not None:  # an outline on the first frame's scene is not on the object
-            conf *= 1.0 - float(scene.stillness(still, pts, nrm))
-        loglik_mean = score_mean if discriminant else float(loglik(X[None])[0])
+        conf, log_d, score_mean = obs.confidence(ev, pts, nrm, spread, posterior_score=post, centre=strict)
+        loglik_mean = score_mean if obs.presence_units else float(obs.log_likelihood(X[None])[0])
         lost = conf < m.lost_below
         self.losses.push(lost)
         finite = bool(np.isfinite(centroid).all())
@@ -390,13 +367,14 @@ class CondensationTracker(Tracker):
         if finite:
             self.centre = centroid
         # normals of the estimate with a feature within the search range (reported, not used)
-        n_found = observe.normals_with_features(fimg, pts, nrm, h=c.search, threshold=m.threshold,
-                                                sign=measure.polarity_sign(m.polarity))
+        search = self.settings.observation.search
+        n_found = normals_with_features(fimg, pts, nrm, h=search, threshold=m.threshold,
+                                        sign=measure.polarity_sign(m.polarity))
         hist = cond.weighted_histogram(particles, self.edges, component=0)
         display: dict[str, Any] = {"histogram": hist, "hist_edges": self.edges}
         if c.display_particles:
             top = np.argsort(w)[::-1][: c.display_particles]
-            display["particle_contours"] = space.points(particles.cur[top], self.sampler)
+            display["particle_contours"] = space.points(particles.cur[top], self.display_sampler)
             display["particle_weights"] = w[top] / max(float(w.max()), 1e-300)
         # for offline consumers (trackcli.trackers.smoothing): each sample's X_{k-1} as its
         # parent had it, before a jump or a re-acquisition moved it
@@ -408,14 +386,19 @@ class CondensationTracker(Tracker):
         return FrameResult(
             index=frame.index, time=frame.time, X=X, X_std=X_std, contour=contour,
             centroid=centroid, bbox=bbox, n_found=n_found, n_normals=m.n_normals,
-            gate_rms=float(c.search), ess=float(ess), loglik=loglik_mean, lost=bool(lost), confidence=conf,
+            gate_rms=float(search), ess=float(ess), loglik=loglik_mean, lost=bool(lost), confidence=conf,
             log_d=log_d, display=display, extra=extra,
         )
 
 
 def track_condensation(frames: Iterable[Any], space: ShapeSpace, dynamics: Any, measurement: MeasurementSettings,
-                       settings: CondensationSettings, rng: np.random.Generator, *, X0: np.ndarray | None = None,
+                       settings: CondensationSettings | Settings, rng: np.random.Generator, *,
+                       X0: np.ndarray | None = None,
                        hist_range: tuple[float, float] | None = None) -> Iterator[FrameResult]:
-    """:class:`CondensationTracker` over ``frames`` with these sections of the settings (the rest default)."""
-    full = Settings(measurement=measurement, condensation=settings)
+    """:class:`CondensationTracker` over ``frames`` with these sections of the settings (the rest
+    default), or with the whole ``settings`` (whose ``measurement`` is then ``measurement``)."""
+    if isinstance(settings, Settings):
+        full = dataclasses.replace(settings, measurement=measurement)
+    else:
+        full = Settings(measurement=measurement, condensation=settings)
     return run_tracker(CondensationTracker(space, dynamics, full, rng, X0=X0, hist_range=hist_range), frames)

@@ -11,11 +11,11 @@ log-weight is minus the sum of two energies (003 §2):
   cross-correlation, ``-NCC_j / coupled.temperature``.
 
 Each frame: select by weight, predict (the centre with its velocity plus noise, and jumps
-as in CONDENSATION's motion prior; each ray with a small random walk), weigh (NCC maps of
+as in CONDENSATION's motion prior, ``jumps.fraction`` and ``jumps.size``; each ray with a small random walk), weigh (NCC maps of
 every part over a window around its predicted position, read at every sample's part
 position).  The estimate is the weighted mean; its confidence is the mean NCC of the
 parts at the estimate, mapped to [0, 1] (:data:`NCC_LOST`, :data:`NCC_SURE`).  Once lost on
-``condensation.reacquire_after`` of the last ``2 reacquire_after - 1`` frames
+``reacquire.after`` of the last ``2 after - 1`` frames
 (:class:`~trackcli.trackers.base.LossRecord`) a share of the samples is drawn about the
 peaks of the whole frame's part votes, with importance weights (:meth:`CoupledTracker._reacquire`).  The template's outline follows the centre (translation)
 and the mean change of the rays (scale and rotation), so the track CSV, ``eval`` and
@@ -47,6 +47,14 @@ class CoupledTracker(Tracker):
 
     name = "coupled"
     needs_template = True
+    no_smoother = "it keeps no sample set of shapes, only of the parts"
+    sample_count = "coupled.particles"
+    reads = ("measurement", "coupled", "jumps", "reacquire")
+
+    @classmethod
+    def describe(cls, settings: Any) -> str:
+        s = settings.coupled
+        return f"seed {settings.seed}; {s.particles} samples of the structure's centre and rays"
 
     def __init__(self, space: Any, dynamics: Any, settings: Any, rng: np.random.Generator | None = None, *,
                  X0: np.ndarray | None = None, template: Any = None, template_path: str = "template"):
@@ -75,7 +83,7 @@ class CoupledTracker(Tracker):
         self.prev_centre = self.state[:, :2].copy()
         self.log_w = np.full(n, -np.log(n))
         self.first = True
-        self.losses = LossRecord(settings.condensation.reacquire_after)
+        self.losses = LossRecord(settings.reacquire.after)
         self.extra_columns = [f"{p.name}_{k}" for p in self.parts for k in ("x", "y", "ncc")]
 
     # -- the model ---------------------------------------------------------------------------
@@ -93,14 +101,14 @@ class CoupledTracker(Tracker):
         return 0.5 * (dl**2 + da**2).sum(axis=1)
 
     def _predict(self, state: np.ndarray, prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        s, c = self.settings.coupled, self.settings.condensation
+        s, j = self.settings.coupled, self.settings.jumps
         rng = self.rng
         n = state.shape[0]
         new = state.copy()
         velocity = state[:, :2] - prev
         new[:, :2] += velocity + s.centre_noise * self.size * rng.standard_normal((n, 2))
-        jump = rng.random(n) < c.jump_fraction
-        new[jump, :2] += c.jump_size * self.size * rng.standard_normal((int(jump.sum()), 2))
+        jump = rng.random(n) < j.fraction
+        new[jump, :2] += j.size * self.size * rng.standard_normal((int(jump.sum()), 2))
         J = len(self.parts)
         new[:, 2::2] *= 1.0 + s.ray_noise * rng.standard_normal((n, J))
         new[:, 3::2] += s.ray_noise * rng.standard_normal((n, J))
@@ -170,19 +178,19 @@ class CoupledTracker(Tracker):
         """Move a share of the samples to the whole frame's vote peaks (importance sampling).
 
         While lost, the motion prior is a mixture: the object may also reappear anywhere
-        (uniform over the frame).  That share (``condensation.reacquire_fraction``) is drawn
+        (uniform over the frame).  That share (``reacquire.fraction``) is drawn
         from a Gaussian mixture about the vote peaks instead, and each such sample carries
         the log of the uniform density over the proposal density; the others carry 0.
         Returns the log-corrections.
         """
-        c = self.settings.condensation
+        r = self.settings.reacquire
         corr = np.zeros(state.shape[0])
         found = self._votes(grey)
         if found is None:
             return corr
         peaks, votes = found
         pi = votes / votes.sum()
-        take = self.rng.random(state.shape[0]) < c.reacquire_fraction
+        take = self.rng.random(state.shape[0]) < r.fraction
         k = int(take.sum())
         if k == 0:
             return corr
@@ -223,8 +231,7 @@ class CoupledTracker(Tracker):
         else:
             parents = cond.resample(np.exp(self.log_w), self.state.shape[0], self.rng, "systematic")
             state, prev = self._predict(self.state[parents], self.prev_centre[parents])
-            c = self.settings.condensation
-            if c.reacquire and self.losses.reacquire:
+            if self.settings.reacquire.enabled and self.losses.reacquire:
                 correction = self._reacquire(grey, state, prev)
         pos = self.part_positions(state)
         # samples in several places after re-acquisition: one window over all of them

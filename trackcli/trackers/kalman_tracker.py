@@ -1,10 +1,10 @@
 """The Kalman contour tracker (AC ch. 10): predict, measure along the normals, assimilate.
 
-Each frame: the AR(2) prediction (AC Fig 10.3, :func:`trackcli.trackers.kalman.predict`),
+Each frame: the AR(2) prediction (AC Fig 10.3, :func:`trackcli.dynamics.kalman.predict`),
 validation gates from the predicted uncertainty along each normal, the nearest feature in
 each gate aggregated into ``Z, S``
-(:func:`trackcli.observe.models.nearest_feature_information`), and the assimilation
-(:func:`trackcli.trackers.kalman.assimilate`).
+(:func:`trackcli.observe.measure.nearest_feature_information`), and the assimilation
+(:func:`trackcli.dynamics.kalman.assimilate`).
 """
 
 from __future__ import annotations
@@ -14,12 +14,12 @@ from typing import Any, Iterable, Iterator
 
 import numpy as np
 
-from trackcli.settings import CondensationSettings, KalmanSettings, MeasurementSettings, Settings
-from trackcli.observe.models import nearest_feature_information
-from trackcli.observe.presence import Presence
+from trackcli.observe.measure import nearest_feature_information
+from trackcli.observe.observation import Observation
+from trackcli.settings import KalmanSettings, MeasurementSettings, ObservationSettings, Settings
 from trackcli.shapes.outline import contour_summary, measurement_sampler
 from trackcli.shapes.shape_space import ShapeSpace
-from trackcli.trackers import kalman
+from trackcli.dynamics import kalman
 from trackcli.trackers.base import FrameData, FrameResult, Tracker, run_tracker
 
 
@@ -35,12 +35,16 @@ class KalmanTracker(Tracker):
     closed-loop steady-state covariance of a full set of measurements on that curve;
     ``"unknown"`` starts from the open-loop steady state of the dynamics.
 
-    The confidence and ``lost`` verdict of every frame come from the discriminant of
-    :class:`~trackcli.observe.presence.Presence` (settings of ``condensation``) applied to
-    the estimated curve, learned from the template on the first frame.
+    The confidence and ``lost`` verdict of every frame come from the observation model
+    (:meth:`~trackcli.observe.observation.Observation.confidence`: the discriminant and colour
+    learned from the template on the first frame, settings ``observation``) applied to the
+    estimated curve; no term of it weighs anything here.
     """
 
     name = "kalman"
+    smoother = "trackcli.trackers.smoothing:KalmanTrackSmoother"
+    reads = ("measurement", "observation", "kalman")
+    observation_terms = ()
 
     def __init__(self, space: ShapeSpace, dynamics: Any, settings: Settings, rng: np.random.Generator | None = None,
                  *, X0: np.ndarray | None = None):
@@ -53,11 +57,12 @@ class KalmanTracker(Tracker):
             self.state = kalman.init_known_static(self.X0, dynamics, S=h0.T @ h0 / self.sigma**2)
         else:
             self.state = kalman.init_unknown(dynamics)
-        self.judge: Presence | None = None
+        self.observation = Observation(settings, space, self.sampler, terms=self.observation_terms)
 
     def step(self, frame: FrameData) -> FrameResult:
         space, m, k = self.space, self.settings.measurement, self.settings.kalman
-        first = self.judge is None
+        obs = self.observation
+        first = obs.presence is None
         predicted = self.state if first else kalman.predict(self.state, self.dynamics)
         Xp = predicted.X
         pts, nrm = space.points_normals(Xp, self.sampler)
@@ -65,16 +70,16 @@ class KalmanTracker(Tracker):
         gates = np.clip(k.kappa * kalman.gate_rho(predicted, h), k.min_gate, k.max_gate)
         fimg = frame.features
         if first:
-            self.judge = Presence.learn(frame.image, fimg, space, self.sampler, self.X0, m, self.settings.condensation)
+            obs.label = self.label
+            obs.start(frame, self.X0)
         Z, S, feats = nearest_feature_information(fimg, pts, nrm, h, gates, self.sigma, m, k.max_gate)
         self.state = state = kalman.assimilate(predicted, Z, S)
         X = state.X
         contour, centroid, bbox = contour_summary(space, X)
         est_pts, est_nrm = space.points_normals(X, self.sampler)
-        judge = self.judge
-        ev = judge.evidence(frame.image, fimg, centroid, frame.colour)
-        spread = float(np.hypot(state.X_std[0], state.X_std[1])) / judge.app.size
-        conf, log_d, _ = judge.confidence(ev, est_pts, est_nrm, spread)
+        ev = obs.prepare(frame, centroid)
+        spread = float(np.hypot(state.X_std[0], state.X_std[1])) / obs.presence.app.size
+        conf, log_d, _ = obs.confidence(ev, est_pts, est_nrm, spread)
         return FrameResult(
             index=frame.index, time=frame.time, X=X.copy(), X_std=state.X_std.copy(),
             contour=contour, centroid=centroid, bbox=bbox, n_found=int(feats.found.sum()), n_normals=m.n_normals,
@@ -94,7 +99,7 @@ class KalmanTracker(Tracker):
 
 def track_kalman(frames: Iterable[Any], space: ShapeSpace, dynamics: Any, measurement: MeasurementSettings,
                  settings: KalmanSettings, *, X0: np.ndarray | None = None,
-                 observation: CondensationSettings | None = None) -> Iterator[FrameResult]:
+                 observation: ObservationSettings | None = None) -> Iterator[FrameResult]:
     """:class:`KalmanTracker` over ``frames`` with these sections of the settings (the rest default)."""
-    full = Settings(measurement=measurement, kalman=settings, condensation=observation or CondensationSettings())
+    full = Settings(measurement=measurement, kalman=settings, observation=observation or ObservationSettings())
     return run_tracker(KalmanTracker(space, dynamics, full, X0=X0), frames)

@@ -6,17 +6,17 @@ modes (a piecewise-Gaussian density); each frame (the steps are :mod:`trackcli.t
 1. every mode is predicted by the AR(2) dynamics (AC Fig 10.3);
 2. ``K·S`` seeds (``S = mht.samples``) are drawn from that prior: each mode's prediction and
    draws around the modes in proportion to their weights; the drawn seeds also jump as
-   CONDENSATION's samples do (``condensation.jump_fraction`` of them, by
-   ``condensation.jump_size`` object sizes RMS in translation, and ``jump_brake`` of them
-   braking: the motion prior is one);
+   CONDENSATION's samples do (``jumps.fraction`` of them, by ``jumps.size`` object sizes RMS
+   in translation, and ``jumps.brake`` of them braking: the motion prior is one);
 3. each seed climbs to a local maximum by ``mht.iterations`` Gauss–Newton steps: the
    Kalman tracker's measurement (the best feature inside the validation gate of every
    normal, :func:`trackcli.observe.measure.kalman_features`, summed into ``Z, S`` by
    :func:`trackcli.observe.measure.aggregate`) made at the seed's current curve with the
    gates of its mode's prediction, then
-   assimilated against the seed's prior mode (:func:`trackcli.trackers.kalman.assimilate`);
-4. each refined curve is weighted by its prior mode's weight and by the observation model
-   of CONDENSATION (``condensation.likelihood``: the discriminant by default);
+   assimilated against the seed's prior mode (:func:`trackcli.dynamics.kalman.assimilate`);
+4. each refined curve is weighted by its prior mode's weight and by the edge likelihood of
+   the observation model (``observation.likelihood``: the discriminant by default; the
+   likelihood itself, neither tempered nor with CONDENSATION's still-scene term);
 5. curves within ``mht.merge_distance`` px (RMS displacement) of a heavier one are merged
    into it and the ``K`` heaviest modes are kept.
 
@@ -24,8 +24,8 @@ The estimate is the heaviest mode (the maximum a posteriori curve, which 004 rep
 "dominant mode"); its covariance gives ``X_std``.  Gates, measurement noise (``kalman.rho_f``,
 ``kappa``, ``min_gate``, ``max_gate``) and the initial condition (``kalman.init``) are the Kalman
 tracker's, so with one mode, one seed and one step the tracker *is* the Kalman tracker.  The
-confidence and ``lost`` verdict come from :class:`~trackcli.observe.presence.Presence`, as
-for the other trackers.
+confidence and ``lost`` verdict come from the observation model
+(:meth:`~trackcli.observe.observation.Observation.confidence`), as for the other trackers.
 
 Per frame it reports, beside the common fields, the number of modes (``modes``), their
 normalised weights heaviest first (``w_mode1 .. w_modeK``, NaN where there are fewer modes)
@@ -40,13 +40,13 @@ from typing import Any
 
 import numpy as np
 
-from trackcli.settings import Settings
 from trackcli.observe import measure
-from trackcli.observe.models import observation_model
-from trackcli.observe.presence import Presence
+from trackcli.observe.observation import Observation
+from trackcli.settings import Settings
 from trackcli.shapes.outline import contour_summary, measurement_sampler
 from trackcli.shapes.shape_space import ShapeSpace
-from trackcli.trackers import kalman, modes
+from trackcli.dynamics import kalman
+from trackcli.trackers import modes
 from trackcli.trackers.base import FrameData, FrameResult, Tracker
 from trackcli.trackers.condensation_tracker import translation_jumps
 from trackcli.trackers.kalman_tracker import kalman_sigma
@@ -62,6 +62,17 @@ class MHTTracker(Tracker):
     """Mode-based multiple hypotheses over contour shape (see the module's description)."""
 
     name = "mht"
+    no_smoother = "its estimate may jump from one mode to another; smooth a kalman or condensation track"
+    reads = ("measurement", "observation", "kalman", "mht", "jumps")
+    #: its hypotheses are weighed by the edge likelihood alone
+    observation_terms = ("discriminant", "clutter", "truncated")
+
+    @classmethod
+    def describe(cls, settings: Settings) -> str:
+        s = settings.mht
+        return (f"seed {settings.seed}; at most {s.modes} modes, {s.samples} seeds per mode, {s.iterations} "
+                f"Gauss-Newton steps, merged within {s.merge_distance:g} px; likelihood "
+                f"{settings.observation.likelihood}")
 
     def __init__(self, space: ShapeSpace, dynamics: Any, settings: Settings, rng: np.random.Generator | None = None,
                  *, X0: np.ndarray | None = None):
@@ -77,8 +88,7 @@ class MHTTracker(Tracker):
             start = kalman.init_unknown(dynamics)
         self.modes: list[kalman.KalmanState] = [start]
         self.log_w = np.zeros(1)
-        self.observation = observation_model(settings.condensation.likelihood, m, settings.condensation)
-        self.judge: Presence | None = None
+        self.observation = Observation(settings, space, self.sampler, terms=self.observation_terms)
         self.jumps = None
         self.centre = space.origin + self.X0[:2]
 
@@ -132,16 +142,15 @@ class MHTTracker(Tracker):
 
     def step(self, frame: FrameData) -> FrameResult:
         space, s, m = self.space, self.settings.mht, self.settings.measurement
-        first = self.judge is None
+        obs = self.observation
+        first = obs.presence is None
         fimg = frame.features
         if first:
-            self.judge = Presence.learn(frame.image, fimg, space, self.sampler, self.X0, m, self.settings.condensation)
-            self.observation.start(frame.image, fimg, space, self.sampler, self.X0, presence=self.judge)
-            c = self.settings.condensation
-            self.jumps = translation_jumps(c.jump_fraction, c.jump_size * self.judge.app.size, c.jump_brake)
-        judge = self.judge
-        ev = judge.evidence(frame.image, fimg, self.centre, frame.colour)
-        self.observation.prepare(frame.image, fimg, ev)
+            obs.label = self.label
+            obs.start(frame, self.X0)
+            j = self.settings.jumps
+            self.jumps = translation_jumps(j.fraction, j.size * obs.presence.app.size, j.brake)
+        ev = obs.prepare(frame, self.centre)
 
         prior = self.modes if first else [kalman.predict(mode, self.dynamics) for mode in self.modes]
         means = np.stack([p.X for p in prior])
@@ -153,7 +162,7 @@ class MHTTracker(Tracker):
         refined = modes.refine(seed_prior, seeds, run, s.iterations)
         X = np.stack([r.X for r in refined])
         pts, nrm = space.points_normals(X, self.sampler)
-        ll = np.asarray(self.observation.log_likelihood(pts, nrm), dtype=float)
+        ll = np.asarray(obs.score(X, pts, nrm), dtype=float)
         log_w = modes.hypothesis_log_weights(parent, self.log_w, ll)
         keep = modes.merge_modes(X, log_w, space.H, s.merge_distance, s.modes)
         self.modes = [refined[i] for i in keep]
@@ -165,8 +174,8 @@ class MHTTracker(Tracker):
         contour, centroid, bbox = contour_summary(space, Xb)
         if np.isfinite(centroid).all():
             self.centre = centroid
-        spread = float(np.hypot(state.X_std[0], state.X_std[1])) / judge.app.size
-        conf, log_d, _ = judge.confidence(ev, pts[b], nrm[b], spread)
+        spread = float(np.hypot(state.X_std[0], state.X_std[1])) / obs.presence.app.size
+        conf, log_d, _ = obs.confidence(ev, pts[b], nrm[b], spread)
         weights = np.exp(self.log_w)
         extra: dict[str, float] = {"modes": float(len(keep))}
         for j in range(s.modes):

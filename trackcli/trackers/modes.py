@@ -1,7 +1,7 @@
 """Mode-based multiple hypotheses: the steps of Cham & Rehg (004) as pure functions.
 
 The density over shape is a handful of *modes*, each a Gaussian over the second-order state
-``𝒳 = (X_{k-1}; X_k)`` (a :class:`~trackcli.trackers.kalman.KalmanState`) with a log weight.
+``𝒳 = (X_{k-1}; X_k)`` (a :class:`~trackcli.dynamics.kalman.KalmanState`) with a log weight.
 Together they form the piecewise-Gaussian density of 004 eq 2,
 
     p(X) ∝ max_j  w_j exp(-½ (X - m_j)ᵀ P_j⁻¹ (X - m_j)),
@@ -10,7 +10,7 @@ in which a point belongs to the mode that contributes most there; ``w_j`` is the
 mode ``j``'s peak (not its mass, so a cluster of weak modes does not outweigh a strong one,
 004 Fig 2).  One frame is, in order (004 §3):
 
-1. the prior: every mode through the Kalman prediction (:func:`trackcli.trackers.kalman.predict`);
+1. the prior: every mode through the Kalman prediction (:func:`trackcli.dynamics.kalman.predict`);
 2. seeds drawn from the piecewise-Gaussian prior (:func:`draw_seeds`, 004 §3.3.2): each mode's
    predicted mean, then draws from mode ``j`` chosen with probability ``∝ w_j``, kept only
    when they fall in mode ``j``'s own cell of the piecewise density;
@@ -36,8 +36,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from trackcli.errors import ConfigError, DataError
-from trackcli.trackers import kalman
-from trackcli.trackers.kalman import KalmanState
+from trackcli.dynamics import kalman
+from trackcli.dynamics.kalman import KalmanState
 
 __all__ = ["component_log_density", "draw_seeds", "hypothesis_log_weights", "merge_modes", "normalise_log",
            "precisions", "refine"]
@@ -147,7 +147,7 @@ def refine(prior: Sequence[KalmanState], seeds: np.ndarray, measure: Measure, it
     prediction, now centred on the current curve; gates narrowed to the refined covariance
     lost the object on the cluttered sample clip).  The information ``Z_i`` of that
     measurement is relative to ``X_i``; relative to the mode's prediction ``X̃`` it is ``Z_i + S_i (X_i - X̃)``, and
-    :func:`trackcli.trackers.kalman.assimilate` against the prior mode gives the next
+    :func:`trackcli.dynamics.kalman.assimilate` against the prior mode gives the next
     shape and its covariance.  Which feature each normal takes depends on where the curve
     is, so seeds in different places climb to different maxima.  With a seed at the
     prediction and one step this is exactly one Kalman update (AC Fig 10.3).
