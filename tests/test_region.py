@@ -233,33 +233,43 @@ def test_contrast_is_high_on_the_object_and_low_on_background_or_half_on_it():
 
 
 class _LostTracker:
-    """A stand-in tracker whose estimate is a circle at ``x``, always reported lost."""
+    """A stand-in tracker whose estimate is a circle at ``xs[k]`` on frame ``k``, always reported lost."""
 
-    def __init__(self, x: float):
-        self.x = x
+    def __init__(self, xs):
+        self.xs = list(xs)
 
     def step(self, frame):
         from trackcli.trackers.base import FrameResult
 
-        c = circle(self.x, r=26)
+        c = circle(self.xs[frame.index], r=26)
         return FrameResult(index=frame.index, time=frame.time, X=np.zeros(2), X_std=np.zeros(2), contour=c,
                            centroid=c.mean(axis=0), bbox=(0.0, 0.0, 1.0, 1.0), n_found=0, n_normals=24,
                            gate_rms=10.0, lost=True, confidence=0.2)
 
 
-@pytest.mark.parametrize("x, threshold, lost", [(60, 3.0, False), (60, 0.0, True), (125, 3.0, True)])
-def test_a_region_that_stands_out_overrules_the_trackers_lost(x, threshold, lost):
+@pytest.mark.parametrize("xs, threshold, lost", [
+    ((60, 60, 60), 3.0, (False, False, False)),    # on the object: the region vouches
+    ((60, 60, 60), 0.0, (True, True, True)),       # lost_contrast 0: the tracker's verdict
+    ((125, 125, 125), 3.0, (True, True, True)),    # on the background: nothing stands out
+    ((60, 104, 104), 3.0, (False, True, True)),    # beside the object: the region stays on it
+])
+def test_a_region_that_stands_out_overrules_the_trackers_lost(xs, threshold, lost):
     """The refined region on the object, standing out in its colours, overrules the tracker's
-    ``lost`` (a contour that does not fit a deforming object), unless ``lost_contrast`` is 0; an
-    estimate on the background stays lost."""
+    ``lost`` (a contour that does not fit a deforming object), unless ``lost_contrast`` is 0.  An
+    estimate on the background stays lost; so does one that left the object, though the region
+    (moved by the flow, in the object's colours) stays on it: a region that no longer agrees with
+    the estimate vouches for neither."""
     from trackcli.trackers.base import FrameData, run_tracker
 
     rng = np.random.default_rng(4)
     m = disc(60)
     frames = [FrameData(k, k / 25, frame(m, rng), np.zeros(SIZE, np.float32)) for k in range(3)]
-    ref = R.OutlineRefiner(settings(lost_contrast=threshold))  # colours learned from the first estimate
-    results = list(run_tracker(_LostTracker(x), frames, refiner=ref))
-    assert [r.lost for r in results] == [lost] * 3
+    ref = R.OutlineRefiner(settings(lost_contrast=threshold), start=R.mask_polygons(m))
+    results = list(run_tracker(_LostTracker(xs), frames, refiner=ref))
+    assert tuple(r.lost for r in results) == lost
+    if xs[-1] == 104:
+        assert region_similarity(outline_mask(results[-1].outline, SIZE), m) > 0.9
+        assert results[-1].region_agreement < R.HOLD_AGREEMENT
 
 
 def test_a_large_object_refined_on_the_shrunk_frame_gives_the_same_outline():

@@ -243,10 +243,19 @@ def test_kalman_with_the_same_model_loses_lock(clutter_runs):
     in_lock = frames.centre_error[10:] <= LOCK_PX
     longest = max((len(run_) for run_ in "".join("1" if x else "0" for x in in_lock).split("0")), default=0)
     assert longest < 20
-    # and says so: its own `lost` flag marks nearly every frame that is more than 20 px off
-    flags = _lost_flags(clutter_runs / "test.kalman.csv", frames.frame)
+    # and says so: its own verdict (its confidence below measurement.lost_below) marks nearly
+    # every frame that is more than 20 px off
+    csv_path = clutter_runs / "test.kalman.csv"
+    own = _column(csv_path, "confidence", frames.frame) < 0.5
     off = frames.centre_error > 20
-    assert off.sum() > 100 and flags[off].mean() > 0.9
+    assert off.sum() > 100 and own[off].mean() > 0.9
+    # The refined outline stays on the head on many of those frames (the flow and the colours
+    # follow it where the estimate does not); the reported `lost` takes the region's word only
+    # where it still agrees with the estimate, and so marks every frame whose outline has
+    # strayed onto the clutter (the head's colours stand out there as on the head)
+    flags = _lost_flags(csv_path, frames.frame)
+    strayed = frames.outline_iou <= 0.3
+    assert strayed.sum() >= 10 and flags[strayed].all()
 
 
 def test_condensation_says_lost_rarely_while_on_the_object(clutter_runs):
@@ -254,6 +263,14 @@ def test_condensation_says_lost_rarely_while_on_the_object(clutter_runs):
     flags = _lost_flags(clutter_runs / "test.condensation.csv", frames.frame)
     on = frames.centre_error < 5
     assert on.sum() > 140 and flags[on].mean() < 0.05
+
+
+def _column(csv_path, name: str, frame_numbers) -> np.ndarray:
+    import csv as csv_module
+
+    with open(csv_path, newline="") as fh:
+        values = {int(r["frame"]): float(r[name]) for r in csv_module.DictReader(fh)}
+    return np.array([values[int(k)] for k in frame_numbers])
 
 
 def _lost_flags(csv_path, frame_numbers) -> np.ndarray:

@@ -251,11 +251,10 @@ class OutlineSettings:
     colour_rate: float = _f(0.05, "float", "share of the way the refinement's colour model moves toward a frame's region when "
                             "the frame is held with confidence (tracker's confidence >= 0.7, region and estimate agreeing "
                             "IoU >= 0.6); 0: the first frame's colours throughout", lo=0, hi=1)
-    lost_contrast: float = _f(0.0, "float", "a frame the tracker reports lost is reported held when the inside of its refined "
+    lost_contrast: float = _f(3.0, "float", "a frame the tracker reports lost is reported held when the inside of its refined "
                               "outline stands out from a band about it by at least this in the first frame's colours (mean "
-                              "colour log-ratio inside less outside; held frames score 4-5); 0 (the default): the tracker's "
-                              "verdict as it is (a region on a look-alike in the object's colours stands out as much, so "
-                              "the rule would vouch for an estimate carried off by clutter)",
+                              "colour log-ratio inside less outside; held frames score 4-5) and the outline still agrees with "
+                              "the estimate (IoU >= 0.2); 0: the tracker's verdict as it is",
                               lo=0, hi=8)
 
 

@@ -13,8 +13,15 @@ prior (AC ch. 8's posterior fit, here pixel by pixel):
 - a pixel is the object's where ``L_c + L_s > 0`` (both smoothed a little so the region's
   boundary does not follow single pixels), in the connected parts that overlap the estimate.
 
-The refined outline is the boundary of that region.  Where colour does not tell object from
-background the prior alone decides and the outline is the estimate's.
+The refined outline is the boundary of that region, its pieces joined into one polygon.  Where
+colour does not tell object from background the prior alone decides and the outline is the
+estimate's.
+
+:class:`OutlineRefiner` runs this over a clip: it learns the colours from the region the
+template was drawn from, moves the last outline to each new frame by dense optical flow (a
+second prior), lets the colours follow the object slowly on frames held with confidence, and
+says when a frame's region is evidence enough that the object is held (:meth:`~OutlineRefiner.holds`,
+the ``lost`` verdict's second opinion).
 
 Its place in a run: a stage after each tracker step (:func:`trackcli.trackers.base.run_tracker`),
 which draws the outline (the CSV's outline columns, the recording's ``video/outline``) and
@@ -52,8 +59,6 @@ class ColourModel:
     @classmethod
     def learn(cls, image_bgr: np.ndarray, mask: np.ndarray, *, band: float = 0.5) -> "ColourModel":
         """From an image and the object's mask: the inside, and a band of ``band`` x its size about it."""
-        import cv2
-
         m = mask.astype(bool)
         idx = _bin_index(image_bgr)
         size = math.sqrt(max(np.count_nonzero(m), 1))
@@ -276,8 +281,6 @@ def contrast(image_bgr: np.ndarray, outline: np.ndarray, model: ColourModel) -> 
     region's size wide about it (NaN for an outline of no area).  An outline on the object is a
     blob of its colours in others (4-5 on held frames of the DAVIS train sequences); one on the
     background, or on part of the object and part of the background, stands out less."""
-    import cv2
-
     h, w = image_bgr.shape[:2]
     p = np.asarray(outline, dtype=float)
     if len(p) < 3 or not np.all(np.isfinite(p)):
@@ -404,6 +407,8 @@ def simplify_closed(points: np.ndarray, n: int) -> np.ndarray:
 #: this and the region agrees with the estimate (IoU) at least :data:`UPDATE_AGREEMENT`
 UPDATE_CONFIDENCE = 0.7
 UPDATE_AGREEMENT = 0.6
+#: the least IoU of a region with the estimate for the region to vouch for its frame (holds)
+HOLD_AGREEMENT = 0.2
 #: objects larger than this (px, the square root of the area of their priors' box) are refined
 #: on the frame shrunk to it: the time of a frame no longer grows with the object's size
 WORK_SIZE = 160.0
@@ -437,8 +442,6 @@ class OutlineRefiner:
 
     def _begin(self, image: np.ndarray, est: np.ndarray) -> RegionFit | None:
         """The first frame from the template's region, or None when there is none where the estimate is."""
-        import cv2
-
         if self.start is None:
             return None
         shape = image.shape[:2]
@@ -510,9 +513,13 @@ class OutlineRefiner:
     def holds(self, fit: RegionFit | None) -> bool:
         """Whether a frame's refined region is evidence enough that the object is held whatever
         the tracker's confidence: its inside stands out from its surroundings in the first
-        frame's colours by at least ``settings.lost_contrast`` (:func:`contrast`; 0: never)."""
+        frame's colours by at least ``settings.lost_contrast`` (:func:`contrast`; 0: never), and
+        it still agrees with the estimate (IoU at least :data:`HOLD_AGREEMENT`).  A region that
+        has parted from the estimate vouches for neither: on a cluttered clip it is as often on a
+        look-alike of the object's colours as on the object."""
         t = self.settings.lost_contrast
-        return fit is not None and t > 0 and math.isfinite(fit.contrast) and fit.contrast >= t
+        return (fit is not None and t > 0 and math.isfinite(fit.contrast) and fit.contrast >= t
+                and fit.agreement >= HOLD_AGREEMENT)
 
 
 def outline_refiner(settings, space, start=None) -> OutlineRefiner | None:
