@@ -252,7 +252,7 @@ def main() -> None:
         head += f" {'still':>5} {'csrt':>5}"
     print(head)
     for seq in seqs:
-        r = run_sequence(seq, work, box=a.box, extra=a.extra.split())
+        r = run_sequence(seq, work, box=a.box, extra=a.extra.split(), draw_extra=a.draw_extra.split())
         if a.baseline:
             r.update(baselines(seq))
         r.pop("template", None)
