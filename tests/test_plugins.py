@@ -313,6 +313,24 @@ def test_a_run_that_stops_while_refining_leaves_no_thread_behind(tmp_path):
     assert not (tmp_path / "t.csv").exists()
 
 
+class FailingSink(Recorder):
+    def frame(self, frame, result) -> None:
+        super().frame(frame, result)
+        if result.index == 2:
+            raise KeyboardInterrupt
+
+
+def test_a_sink_that_stops_the_run_stops_the_refinement_thread_at_once(tmp_path):
+    import threading
+
+    sink = FailingSink()
+    with open_video(CLIP, end=FRAMES) as video, pytest.raises(KeyboardInterrupt):
+        _run_clip(video, tmp_path, sink, refiner=RefinerStub())
+    # the traceback still holds the run's frames: the thread must have stopped without them going
+    assert not [t for t in threading.enumerate() if t.name.startswith("trackcli-refine") and t.is_alive()]
+    assert sink.frames == [0, 1, 2] and isinstance(sink.error, KeyboardInterrupt)
+
+
 def test_a_run_that_stops_closes_every_sink_with_the_error_and_writes_nothing(tmp_path):
     sink = Recorder()
     with open_video(CLIP, end=FRAMES) as video, pytest.raises(KeyboardInterrupt):

@@ -80,8 +80,8 @@ def feed(results: Iterator[Any], frames: Any, sinks: Sequence[Sink]) -> float:
     refined, :func:`trackcli.trackers.base.run_tracker`), or with ``frames.current`` when
     ``frames`` cannot look frames up.  Returns the seconds spent in the
     tracker's steps (waiting for decoded frames included).  An exception from the tracker or
-    a sink closes every sink with it (they remove their files) and is raised again; sinks are
-    closed in reverse order.
+    a sink closes ``results`` (a generator's threads stop) and every sink with it (they remove
+    their files) and is raised again; sinks are closed in reverse order.
     """
     step_seconds = 0.0
     frame_at = getattr(frames, "frame_at", None)
@@ -100,6 +100,12 @@ def feed(results: Iterator[Any], frames: Any, sinks: Sequence[Sink]) -> float:
         for sink in sinks:
             sink.finish()
     except BaseException as exc:
+        close = getattr(results, "close", None)  # a generator's own threads stop with it
+        if close is not None:
+            try:
+                close()
+            except Exception:  # the run's error is the one to report
+                pass
         _close(sinks, exc)
         raise
     _close(sinks, None)
