@@ -306,10 +306,12 @@ def test_a_run_that_stops_while_refining_leaves_no_thread_behind(tmp_path):
     import threading
 
     sink = Recorder()
+    refiner = RefinerStub()
     with open_video(CLIP, end=FRAMES) as video, pytest.raises(KeyboardInterrupt):
-        _run_clip(video, tmp_path, sink, fail_at=3, refiner=RefinerStub())
+        _run_clip(video, tmp_path, sink, fail_at=3, refiner=refiner)
     assert sink.frames == [0, 1, 2] and isinstance(sink.error, KeyboardInterrupt)
-    assert not [t for t in threading.enumerate() if t.name.startswith("trackcli-refine")]
+    assert refiner.threads
+    assert not [t for t in threading.enumerate() if t.ident in refiner.threads and t.is_alive()]
     assert not (tmp_path / "t.csv").exists()
 
 
@@ -323,11 +325,12 @@ class FailingSink(Recorder):
 def test_a_sink_that_stops_the_run_stops_the_refinement_thread_at_once(tmp_path):
     import threading
 
-    sink = FailingSink()
+    sink, refiner = FailingSink(), RefinerStub()
     with open_video(CLIP, end=FRAMES) as video, pytest.raises(KeyboardInterrupt):
-        _run_clip(video, tmp_path, sink, refiner=RefinerStub())
+        _run_clip(video, tmp_path, sink, refiner=refiner)
     # the traceback still holds the run's frames: the thread must have stopped without them going
-    assert not [t for t in threading.enumerate() if t.name.startswith("trackcli-refine") and t.is_alive()]
+    assert refiner.threads
+    assert not [t for t in threading.enumerate() if t.ident in refiner.threads and t.is_alive()]
     assert sink.frames == [0, 1, 2] and isinstance(sink.error, KeyboardInterrupt)
 
 
