@@ -232,7 +232,26 @@ class Recorder(Sink):
         self.error = error
 
 
-def _run_clip(video, tmp_path, sink, fail_at: int | None = None):
+class RefinerStub:
+    """Draws no outline; notes the thread, the frame and the estimate of every call."""
+
+    def __init__(self) -> None:
+        import threading
+
+        self.threads: set[int] = set()
+        self.seen: dict[int, int] = {}  # the image's id by the frame's place in the clip
+        self._threading = threading
+
+    def __call__(self, image, estimate, confidence):
+        self.threads.add(self._threading.get_ident())
+        self.seen[len(self.seen)] = id(image)
+        return None
+
+    def holds(self, fit) -> bool:
+        return False
+
+
+def _run_clip(video, tmp_path, sink, fail_at: int | None = None, refiner=None):
     from trackcli.dynamics.handset import handset_dynamics
     from trackcli.shapes.template import load_template
     from trackcli.trackers.kalman_tracker import KalmanTracker
@@ -243,7 +262,7 @@ def _run_clip(video, tmp_path, sink, fail_at: int | None = None):
     tracker = KalmanTracker(space, handset_dynamics(space, settings.dynamics, 1.0 / video.fps), settings)
 
     def make(frames):
-        for r in run_tracker(tracker, frames):
+        for r in run_tracker(tracker, frames, refiner=refiner):
             if r.index == fail_at:
                 raise KeyboardInterrupt
             yield r
@@ -260,6 +279,59 @@ def test_a_sink_given_to_the_runner_sees_every_frame_then_finish_and_close(tmp_p
     assert set(sink.images) == {(360, 480, 3)}
     assert sink.calls == ["finish", "close"] and sink.error is None
     assert (tmp_path / "t.csv").is_file()
+
+
+class FrameRecorder(Recorder):
+    def frame(self, frame, result) -> None:
+        super().frame(frame, result)
+        self.calls.append((frame.index, id(frame.image)))
+
+
+def test_the_refinement_runs_a_frame_behind_in_its_own_thread_and_each_result_meets_its_frame(tmp_path):
+    import threading
+
+    sink, refiner = FrameRecorder(), RefinerStub()
+    with open_video(CLIP, end=FRAMES) as video:
+        summary = _run_clip(video, tmp_path, sink, refiner=refiner)
+    assert sink.frames == list(range(FRAMES)) and summary.frames == FRAMES
+    assert refiner.threads and threading.get_ident() not in refiner.threads
+    paired = [c for c in sink.calls if isinstance(c, tuple)]
+    # each result with the frame of its index: the very image its outline was refined on
+    assert [i for i, _ in paired] == list(range(FRAMES))
+    assert [image for _, image in paired] == [refiner.seen[k] for k in range(FRAMES)]
+    assert sink.calls[-2:] == ["finish", "close"]
+
+
+def test_a_run_that_stops_while_refining_leaves_no_thread_behind(tmp_path):
+    import threading
+
+    sink = Recorder()
+    refiner = RefinerStub()
+    with open_video(CLIP, end=FRAMES) as video, pytest.raises(KeyboardInterrupt):
+        _run_clip(video, tmp_path, sink, fail_at=3, refiner=refiner)
+    assert sink.frames == [0, 1, 2] and isinstance(sink.error, KeyboardInterrupt)
+    assert refiner.threads
+    assert not [t for t in threading.enumerate() if t.ident in refiner.threads and t.is_alive()]
+    assert not (tmp_path / "t.csv").exists()
+
+
+class FailingSink(Recorder):
+    def frame(self, frame, result) -> None:
+        super().frame(frame, result)
+        if result.index == 2:
+            raise KeyboardInterrupt
+
+
+def test_a_sink_that_stops_the_run_stops_the_refinement_thread_at_once(tmp_path):
+    import threading
+
+    sink, refiner = FailingSink(), RefinerStub()
+    with open_video(CLIP, end=FRAMES) as video, pytest.raises(KeyboardInterrupt):
+        _run_clip(video, tmp_path, sink, refiner=refiner)
+    # the traceback still holds the run's frames: the thread must have stopped without them going
+    assert refiner.threads
+    assert not [t for t in threading.enumerate() if t.ident in refiner.threads and t.is_alive()]
+    assert sink.frames == [0, 1, 2] and isinstance(sink.error, KeyboardInterrupt)
 
 
 def test_a_run_that_stops_closes_every_sink_with_the_error_and_writes_nothing(tmp_path):

@@ -310,6 +310,39 @@ def test_joined_outline_fills_every_piece_and_little_else():
     np.testing.assert_array_equal(R.joined_outline(pieces[:1]), pieces[0])
 
 
+def test_joined_outline_walks_each_piece_once_round_and_crosses_each_bridge_there_and_back():
+    m = np.zeros(SIZE, bool)
+    m[10:50, 10:50] = True
+    m[60:100, 20:40] = True
+    m[20:40, 100:150] = True
+    pieces = R.outer_pieces(m)
+    joined = R.joined_outline(pieces)
+    # every boundary point once, plus the point each bridge leaves from again on the way back
+    assert len(joined) == sum(len(p) for p in pieces) + len(pieces) - 1
+    rows = {tuple(q) for q in joined}
+    assert all(tuple(q) in rows for p in pieces for q in p)
+    # the walk starts where the largest piece starts, and its steps are a pixel except at bridges
+    np.testing.assert_array_equal(joined[0], pieces[0][0])
+    steps = np.hypot(*np.diff(joined, axis=0).T)
+    assert np.count_nonzero(steps > 1.5) == 2 * (len(pieces) - 1)
+
+
+def test_the_colour_log_ratio_is_the_same_compiled_and_on_a_mask():
+    rng = np.random.default_rng(3)
+    image = rng.integers(0, 256, (60, 80, 3), dtype=np.uint8)
+    model = R.ColourModel(rng.random(R.BINS ** 3), rng.random(R.BINS ** 3))
+    lut = np.clip(np.log(model.fg + 1e-4) - np.log(model.bg + 1e-4), -R.L_MAX, R.L_MAX).astype(np.float32)
+    roi = image[5:50, 7:70]  # a view with strides, as the refinement reads its ROI
+    q = roi.astype(np.int64) * R.BINS // 256
+    expected = lut[(q[..., 0] * R.BINS + q[..., 1]) * R.BINS + q[..., 2]]
+    np.testing.assert_array_equal(model.log_ratio(roi), expected)
+    mask = rng.random(roi.shape[:2]) > 0.6
+    np.testing.assert_array_equal(model.log_ratio(roi, mask), expected[mask])
+    np.testing.assert_array_equal(model.log_ratio(roi.astype(np.float64)), expected)  # not compiled
+    model.blend(R.ColourModel(model.bg, model.fg), 0.5)  # new histograms: a new table
+    assert np.all(np.abs(model.log_ratio(roi)) < 1e-6)
+
+
 def test_an_object_a_pole_cuts_in_two_is_outlined_whole():
     """A pole in front of the object cuts its region in two; both parts are on the estimate, and
     the outline takes both in (before: only the larger)."""

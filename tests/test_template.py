@@ -253,3 +253,21 @@ def test_constructor_validates_too():
         Template(np.array([[0.0, 0.0], [1.0, np.nan], [2.0, 0.0]]))
     with pytest.raises(TemplateError, match="at least 3"):
         Template(np.zeros((2, 2)))
+
+
+def test_a_template_read_again_is_a_new_copy_and_a_changed_file_is_read_anew(tmp_path):
+    p = tmp_path / "t.yaml"
+    cp = np.array([[0, 0], [10, 0], [10, 10], [0, 10]], float)
+    save_template(p, Template(cp, extra={"note": {"by": "hand"}}))
+    first = load_template(p)
+    first.control_points[0] = (99, 99)
+    first.extra["note"]["by"] = "someone else"
+    again = load_template(p)
+    np.testing.assert_array_equal(again.control_points, cp)
+    assert again.extra == {"note": {"by": "hand"}}
+    save_template(p, Template(cp + 5, extra={"note": {"by": "hand"}, "more": 1}))
+    changed = load_template(p)  # another size: read anew even within the same clock tick
+    np.testing.assert_array_equal(changed.control_points, cp + 5)
+    p.unlink()
+    with pytest.raises(TemplateError, match="no such template file"):
+        load_template(p)

@@ -363,3 +363,28 @@ def colour_lookup(hsv, shares, lut, out):  # pragma: no cover - compiled
         for x in range(w_img):
             b = int(shares[hsv[y, x, 0], 0]) + int(shares[hsv[y, x, 1], 1]) + int(shares[hsv[y, x, 2], 2])
             out[y, x] = lut[b]
+
+
+@njit(cache=True, nogil=True)
+def bgr_bin_lookup(image, lut, out):  # pragma: no cover - compiled
+    """``out[y, x] = lut[(b >> 4) << 8 | (g >> 4) << 4 | r >> 4]`` for the BGR pixel ``(b, g, r)``:
+    the region's colour log-ratio (:mod:`trackcli.observe.region`, 16 bins a channel) in one pass
+    over the image instead of five array passes and a gather."""
+    h_img, w_img = out.shape
+    for y in range(h_img):
+        for x in range(w_img):
+            out[y, x] = lut[((image[y, x, 0] >> 4) << 8) | ((image[y, x, 1] >> 4) << 4) | (image[y, x, 2] >> 4)]
+
+
+@njit(cache=True, nogil=True)
+def bgr_bin_lookup_masked(image, mask, lut, out):  # pragma: no cover - compiled
+    """The values of :func:`bgr_bin_lookup` at the pixels where ``mask`` is set, in row order
+    (as ``L[mask]`` of the whole image's); returns how many (the first entries of ``out``)."""
+    h_img, w_img = mask.shape
+    n = 0
+    for y in range(h_img):
+        for x in range(w_img):
+            if mask[y, x]:
+                out[n] = lut[((image[y, x, 0] >> 4) << 8) | ((image[y, x, 1] >> 4) << 4) | (image[y, x, 2] >> 4)]
+                n += 1
+    return n

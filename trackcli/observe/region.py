@@ -45,8 +45,16 @@ L_MAX = 4.0
 
 
 def _bin_index(image_bgr: np.ndarray) -> np.ndarray:
+    if image_bgr.dtype == np.uint8:  # the same bins in fewer array passes
+        q = image_bgr >> 4
+        return (q[..., 0].astype(np.uint16) << 8) | ((q[..., 1] << 4) | q[..., 2])
     q = (image_bgr.astype(np.uint16) * BINS) >> 8
     return (q[..., 0] * BINS + q[..., 1]) * BINS + q[..., 2]
+
+
+def _compiled(image_bgr: np.ndarray) -> bool:
+    """Whether the compiled look-up (:func:`trackcli.observe.kernels.bgr_bin_lookup`) reads ``image_bgr``."""
+    return image_bgr.dtype == np.uint8 and image_bgr.ndim == 3 and image_bgr.shape[2] == 3
 
 
 @dataclass
@@ -55,6 +63,15 @@ class ColourModel:
 
     fg: np.ndarray
     bg: np.ndarray
+    _lut: tuple = dataclasses.field(default=(None, None, None), init=False, repr=False, compare=False)
+
+    def lut(self) -> np.ndarray:
+        """``L_c`` of every bin, float32 (made again only when ``fg`` or ``bg`` is another array)."""
+        fg, bg, lut = self._lut
+        if fg is not self.fg or bg is not self.bg:
+            lut = np.clip(np.log(self.fg + 1e-4) - np.log(self.bg + 1e-4), -L_MAX, L_MAX).astype(np.float32)
+            self._lut = (self.fg, self.bg, lut)
+        return lut
 
     @classmethod
     def learn(cls, image_bgr: np.ndarray, mask: np.ndarray, *, band: float = 0.5) -> "ColourModel":
@@ -66,10 +83,23 @@ class ColourModel:
         ring = grow(m, r) & ~m
         return cls(_hist(idx[m]), _hist(idx[ring]))
 
-    def log_ratio(self, image_bgr: np.ndarray) -> np.ndarray:
-        """``L_c`` of every pixel, float32 in [-L_MAX, L_MAX]."""
-        lut = np.clip(np.log(self.fg + 1e-4) - np.log(self.bg + 1e-4), -L_MAX, L_MAX).astype(np.float32)
-        return lut[_bin_index(image_bgr)]
+    def log_ratio(self, image_bgr: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+        """``L_c`` of every pixel, float32 in [-L_MAX, L_MAX]; with ``mask`` (bool, the image's
+        height and width) only at its pixels, in row order: ``log_ratio(image)[mask]``."""
+        lut = self.lut()
+        if not _compiled(image_bgr):
+            L = lut[_bin_index(image_bgr)]
+            return L if mask is None else L[mask]
+        from trackcli.observe.kernels import bgr_bin_lookup, bgr_bin_lookup_masked
+
+        if mask is None:
+            out = np.empty(image_bgr.shape[:2], np.float32)
+            bgr_bin_lookup(image_bgr, lut, out)
+            return out
+        mask = np.asarray(mask, dtype=bool)
+        out = np.empty(np.count_nonzero(mask), np.float32)
+        bgr_bin_lookup_masked(image_bgr, mask, lut, out)
+        return out
 
     def blend(self, other: "ColourModel", rate: float) -> None:
         """Move toward ``other`` by ``rate`` (a slow update from a frame held with confidence)."""
@@ -193,7 +223,7 @@ def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, s
         sd = cv2.distanceTransform(1 - ins, cv2.DIST_L2, 3) - cv2.distanceTransform(ins, cv2.DIST_L2, 3)
         post = post - wt * sd / (sigma * obj)
     region = (post > 0).astype(np.uint8)
-    n, lab, stats, _ = cv2.connectedComponentsWithStats(region, connectivity=8)
+    n, lab = cv2.connectedComponents(region, connectivity=8)
     keep = np.zeros(n, bool)
     if n > 1:
         overlap = np.bincount(lab[inside.astype(bool)], minlength=n)
@@ -255,20 +285,23 @@ def joined_outline(pieces: list[np.ndarray]) -> np.ndarray:
                 best[i], parent[i] = dist[b, i], b
 
     def walk(a: int, start: int) -> list[np.ndarray]:
-        p = pieces[a]
+        # the boundary from ``start`` round to it, in runs between the places a child is spliced
+        # in: the run up to that place (it included), the child's walk, that place again
+        p = np.roll(pieces[a], -start, axis=0)
         at: dict[int, list[int]] = {}
         for c in tree[a]:
-            at.setdefault(near[(a, c)][0], []).append(c)
-        out = []
-        for step in range(len(p)):
-            i = (start + step) % len(p)
-            out.append(p[i])
-            for c in at.get(i, ()):
+            at.setdefault((near[(a, c)][0] - start) % len(p), []).append(c)
+        out, done = [], 0
+        for step in sorted(at):
+            out.append(p[done:step + 1])
+            for c in at[step]:
                 out.extend(walk(c, near[(a, c)][1]))
-                out.append(p[i])
+                out.append(p[step:step + 1])
+            done = step + 1
+        out.append(p[done:])
         return out
 
-    return np.asarray(walk(0, 0))
+    return np.concatenate(walk(0, 0))
 
 
 #: the band about a region whose colours :func:`contrast` compares with its inside, in object sizes
@@ -303,8 +336,8 @@ def contrast(image_bgr: np.ndarray, outline: np.ndarray, model: ColourModel) -> 
     band = grow(inside, r) & ~inside
     if not band.any():
         return math.nan
-    L = model.log_ratio(image_bgr[y0:y1, x0:x1])
-    return float(L[inside].mean() - L[band].mean())
+    roi = image_bgr[y0:y1, x0:x1]
+    return float(model.log_ratio(roi, inside).mean() - model.log_ratio(roi, band).mean())
 
 
 #: the frames' scale for the optical flow (DIS at half resolution: 1.6 ms a frame of 854x480)

@@ -22,9 +22,13 @@ class DecodeAhead:
     ``prepare``, when given, turns each decoded frame into what the consumer gets, in the
     same thread (the tracker's whole-frame images, :meth:`trackcli.trackers.base.Tracker.prepare`).
     ``decode_seconds`` is the decoding time, ``prepare_seconds`` the time in ``prepare``,
-    ``wait_seconds`` the time the consumer spent waiting for a frame.  :meth:`close` stops
+    ``wait_seconds`` the time the consumer spent waiting for a frame.  ``current`` is the last
+    frame handed out, :meth:`frame_at` one of the last few by its index.  :meth:`close` stops
     the thread (call it before the video closes).
     """
+
+    #: the frames handed out that :meth:`frame_at` still finds
+    RECENT = 4
 
     _END = object()
 
@@ -35,6 +39,7 @@ class DecodeAhead:
         self.decode_seconds = 0.0
         self.wait_seconds = 0.0
         self.current: Any = None
+        self._recent: collections.deque = collections.deque(maxlen=self.RECENT)
         self._queue: queue.Queue = queue.Queue(maxsize=depth)
         self._stop = threading.Event()
         self._done = False
@@ -86,7 +91,16 @@ class DecodeAhead:
             self._done = True
             raise item
         self.current = item
+        self._recent.append(item)
         return item
+
+    def frame_at(self, index: int) -> Any:
+        """The frame of ``index`` among the last :data:`RECENT` handed out (the newest of that
+        index), else :attr:`current`."""
+        for item in reversed(self._recent):
+            if getattr(item, "index", None) == index:
+                return item
+        return self.current
 
     def close(self) -> None:
         self._stop.set()

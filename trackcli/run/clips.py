@@ -205,7 +205,8 @@ def run_clip(
         frames.close()
     wall = time.perf_counter() - t_start
     # the tracker's own time: its steps, less the time they waited for a decoded frame, plus
-    # the time `prepare` spent on their images in the decoding thread
+    # the time `prepare` spent on their images in the decoding thread (the outline refinement,
+    # in a thread of its own, counts where the steps waited for it)
     tracker_seconds = max(step_seconds - frames.wait_seconds + frames.prepare_seconds, 1e-9)
     return RunSummary(
         clip=str(getattr(video, "path", "?")), tracker=tracker, frames=tally.frames, frames_lost=tally.lost,

@@ -74,13 +74,17 @@ class Sink:
 def feed(results: Iterator[Any], frames: Any, sinks: Sequence[Sink]) -> float:
     """The frame loop: every result of ``results`` to every sink, then ``finish`` and ``close``.
 
-    ``frames`` is what the results were made from (:class:`trackcli.run.background.DecodeAhead`:
-    its ``current`` frame is the one of the result just made).  Returns the seconds spent in the
+    ``frames`` is what the results were made from (:class:`trackcli.run.background.DecodeAhead`):
+    each result goes to the sinks with the frame of its ``index`` (``frames.frame_at``; the
+    tracker may have taken the next frame already, as it does while the outline of the last is
+    refined, :func:`trackcli.trackers.base.run_tracker`), or with ``frames.current`` when
+    ``frames`` cannot look frames up.  Returns the seconds spent in the
     tracker's steps (waiting for decoded frames included).  An exception from the tracker or
-    a sink closes every sink with it (they remove their files) and is raised again; sinks are
-    closed in reverse order.
+    a sink closes ``results`` (a generator's threads stop) and every sink with it (they remove
+    their files) and is raised again; sinks are closed in reverse order.
     """
     step_seconds = 0.0
+    frame_at = getattr(frames, "frame_at", None)
     try:
         while True:
             t0 = time.perf_counter()
@@ -90,11 +94,18 @@ def feed(results: Iterator[Any], frames: Any, sinks: Sequence[Sink]) -> float:
                 break
             finally:
                 step_seconds += time.perf_counter() - t0
+            frame = frame_at(r.index) if frame_at is not None else frames.current
             for sink in sinks:
-                sink.frame(frames.current, r)
+                sink.frame(frame, r)
         for sink in sinks:
             sink.finish()
     except BaseException as exc:
+        close = getattr(results, "close", None)  # a generator's own threads stop with it
+        if close is not None:
+            try:
+                close()
+            except Exception:  # the run's error is the one to report
+                pass
         _close(sinks, exc)
         raise
     _close(sinks, None)

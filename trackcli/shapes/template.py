@@ -26,6 +26,9 @@ starts (:class:`trackcli.observe.region.OutlineRefiner`).
 
 from __future__ import annotations
 
+import copy
+import threading
+
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -205,12 +208,41 @@ def save_template(path: str | Path, template: Template) -> Path:
 
 
 def load_template(path: str | Path) -> Template:
-    """Read and validate a template file."""
+    """Read and validate a template file.
+
+    A run reads its template several times (its shape-space, its region, its box); the file's
+    parsed YAML is kept for as long as the file is unchanged (its path, size and modification
+    time), since parsing a template with its region took 0.15 s each time (each call still
+    builds a new :class:`Template` from a copy of it).
+    """
     p = Path(path)
-    data = read_yaml_file(p, "template", TemplateError)
+    data = copy.deepcopy(_parsed(p))
     if not isinstance(data, dict) or data.get("kind") is None:
         raise TemplateError(f"{p}: not a trackcli template (a YAML file written by 'trackcli draw')")
     other = other_kind(data, KIND)
     if other:
         raise TemplateError(f"{p}: {other}, not a template (a YAML file written by 'trackcli draw')")
     return Template.from_dict(data, where=str(p))
+
+
+#: parsed template files by (absolute path, size, modification time): :func:`load_template`
+_PARSED: dict[tuple[str, int, int], Any] = {}
+_PARSED_MAX = 8
+_PARSED_LOCK = threading.Lock()
+
+
+def _parsed(p: Path) -> Any:
+    try:
+        st = p.stat()
+        key = (str(p.absolute()), st.st_size, st.st_mtime_ns)
+    except OSError:  # read_yaml_file says why, in one line
+        return read_yaml_file(p, "template", TemplateError)
+    with _PARSED_LOCK:
+        data = _PARSED.get(key)
+    if data is None:
+        data = read_yaml_file(p, "template", TemplateError)
+        with _PARSED_LOCK:
+            while len(_PARSED) >= _PARSED_MAX:
+                _PARSED.pop(next(iter(_PARSED)))
+            _PARSED[key] = data
+    return data

@@ -271,21 +271,52 @@ def run_tracker(tracker: Tracker, frames: Iterable[Any], measurement: Measuremen
     in the full image from its estimate: a stage after the tracker's step, which changes nothing
     of the estimate or the weights; a frame the tracker calls lost is reported held when the
     refined region vouches for it (:meth:`~trackcli.observe.region.OutlineRefiner.holds`; the
-    tracker's own course, e.g. its re-acquisition, follows its own verdict).
+    tracker's own course, e.g. its re-acquisition, follows its own verdict).  The refinement
+    runs in a thread of its own, a frame behind the tracker: a result is yielded once the
+    tracker has taken the next frame (:func:`trackcli.run.sinks.feed` pairs it with its frame
+    by index).
     """
+    def data_of(frame: Any) -> FrameData:
+        if measurement is not None:
+            return FrameData(int(frame.index), float(frame.time), frame.image, feature_image(frame.image, measurement))
+        return frame if isinstance(frame, FrameData) else tracker.prepare(frame)
+
+    if refiner is None:
+        for frame in frames:
+            yield tracker.step(data_of(frame))
+        return
+    # The refinement of a frame runs in a thread of its own while the tracker steps on the next
+    # frame (it reads nothing the tracker changes, and the tracker nothing it makes; OpenCV,
+    # numpy and the compiled kernels release the interpreter's lock), so each result comes out
+    # one frame late, in order: who pairs results with frames does so by their ``index``.
+    from concurrent.futures import ThreadPoolExecutor
+
+    pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="trackcli-refine")
+    pending = None
+    try:
+        for frame in frames:
+            data = data_of(frame)
+            job = pool.submit(_refined, refiner, data.image, tracker.step(data))
+            if pending is not None:
+                done, pending = pending, job
+                yield done.result()
+            else:
+                pending = job
+        if pending is not None:
+            done, pending = pending, None
+            yield done.result()
+    finally:
+        if pending is not None:
+            pending.cancel()
+        pool.shutdown(wait=True)
+
+
+def _refined(refiner: Any, image: np.ndarray, r: FrameResult) -> FrameResult:
+    """``r`` with the outline ``refiner`` draws from its estimate on ``image`` (see :func:`run_tracker`)."""
     import dataclasses
 
-    for frame in frames:
-        if measurement is not None:
-            data = FrameData(int(frame.index), float(frame.time), frame.image, feature_image(frame.image, measurement))
-        elif isinstance(frame, FrameData):
-            data = frame
-        else:
-            data = tracker.prepare(frame)
-        r = tracker.step(data)
-        if refiner is not None:
-            fit = refiner(data.image, r.contour, r.confidence)
-            if fit is not None and fit.outline is not None:
-                r = dataclasses.replace(r, outline=fit.outline, region_agreement=fit.agreement,
-                                        lost=r.lost and not refiner.holds(fit))
-        yield r
+    fit = refiner(image, r.contour, r.confidence)
+    if fit is not None and fit.outline is not None:
+        r = dataclasses.replace(r, outline=fit.outline, region_agreement=fit.agreement,
+                                lost=r.lost and not refiner.holds(fit))
+    return r
