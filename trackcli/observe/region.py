@@ -9,7 +9,8 @@ prior (AC ch. 8's posterior fit, here pixel by pixel):
   of two colour histograms (Bibby & Reid 2008's pixel-wise posteriors), the object's learned
   inside the template, the background's in a band about it;
 - the estimate gives a prior log-odds that falls with the signed distance ``d`` from its
-  outline, ``L_s = -d / sigma``, ``sigma`` a fraction of the object's size;
+  outline, ``L_s = -d / sigma``, ``sigma`` a fraction of the object's size (the largest of its
+  priors': an estimate that has shrunk onto a part of the object does not narrow it);
 - a pixel is the object's where ``L_c + L_s > 0`` (both smoothed a little so the region's
   boundary does not follow single pixels), in the connected parts that overlap the estimate.
 
@@ -143,7 +144,8 @@ def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, s
     """The region the colour posterior and the estimate's prior agree on (module docstring).
 
     ``others``: more priors ``(pieces, weight)``, ``pieces`` a polygon ``(P, 2)`` or a list of
-    them (a region in pieces), their log-odds added to the estimate's.  The region's connected
+    them (a region in pieces), their log-odds added to the estimate's; every prior's width is
+    ``sigma`` x the object's size, the square root of the largest of their areas.  The region's connected
     parts kept are those that overlap the estimate; the outline joins them (:func:`joined_outline`:
     a person's legs that a shadow or a pole cuts off are the person's).
     ``work_size``: an object larger than this (px, the square root of its priors' box) is
@@ -185,11 +187,17 @@ def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, s
     L = model.log_ratio(roi)
     if smooth > 0:
         L = cv2.GaussianBlur(L, (0, 0), max(0.5, smooth * f))
-    post = L - signed / (sigma * obj)
+    fills = []
     for o, wt in others:
         ins = np.zeros(inside.shape, np.uint8)
         for piece in o:
             ins |= polygon_fill(shrink(piece), inside.shape)
+        fills.append((ins, wt))
+    if fills:  # the object's size: the largest of its priors' (an estimate shrunk onto a part
+        # of the object, a car's wheel, would otherwise pull the outline after it)
+        obj = math.sqrt(max([area] + [float(np.count_nonzero(i)) for i, _ in fills]))
+    post = L - signed / (sigma * obj)
+    for ins, wt in fills:
         sd = cv2.distanceTransform(1 - ins, cv2.DIST_L2, 3) - cv2.distanceTransform(ins, cv2.DIST_L2, 3)
         post = post - wt * sd / (sigma * obj)
     region = (post > 0).astype(np.uint8)
