@@ -346,14 +346,3 @@ def test_an_object_a_pole_cuts_in_two_is_outlined_whole():
         fit = ref(img, ellipse_about(m))
     assert len(fit.pieces) == 2
     assert region_similarity(outline_mask(fit.outline, SIZE), m) > 0.9
-
-
-def test_edge_strength_is_higher_along_the_objects_boundary_than_across_flat_colour():
-    rng = np.random.default_rng(2)
-    m = np.zeros(SIZE, np.uint8)
-    cv2.rectangle(m, (40, 30), (119, 89), 1, -1)
-    img = frame(m.astype(bool), rng)
-    on = np.array([[40, 30], [119, 30], [119, 89], [40, 89]], float)
-    off = np.array([[25, 15], [134, 15], [134, 104], [25, 104]], float)  # 15 px out, flat background
-    s_on, s_off, s_none = R.edge_strength(img, [on, off, np.full((3, 2), np.nan)])
-    assert s_on > 5 * s_off and np.isnan(s_none)
