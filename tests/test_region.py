@@ -346,3 +346,18 @@ def test_an_object_a_pole_cuts_in_two_is_outlined_whole():
         fit = ref(img, ellipse_about(m))
     assert len(fit.pieces) == 2
     assert region_similarity(outline_mask(fit.outline, SIZE), m) > 0.9
+
+
+def test_a_region_that_holds_the_whole_object_vouches_for_an_estimate_shrunk_onto_a_part():
+    """The lost verdict's agreement: an estimate shrunk onto a part of the object (a wheel), which
+    the region covers, is held by it though their IoU is small; one beside the object is not."""
+    rng = np.random.default_rng(5)
+    m = np.zeros(SIZE, np.uint8)
+    cv2.rectangle(m, (20, 40), (139, 79), 1, -1)
+    m = m.astype(bool)
+    img = frame(m, rng)
+    t = np.linspace(0, 2 * np.pi, 100, endpoint=False)
+    ref = R.OutlineRefiner(settings(), start=R.mask_polygons(m))
+    ref(img, R.mask_polygons(m)[0], 0.9)  # the first frame: the colours, the region
+    wheel = ref(img, np.column_stack([120 + 12 * np.cos(t), 68 + 12 * np.sin(t)]), 0.2)
+    assert wheel.agreement < R.HOLD_AGREEMENT and wheel.covers > 0.9 and ref.holds(wheel)
