@@ -272,6 +272,27 @@ def test_a_region_that_stands_out_overrules_the_trackers_lost(xs, threshold, los
         assert results[-1].region_agreement < R.HOLD_AGREEMENT
 
 
+def test_an_estimate_shrunk_onto_a_part_does_not_pull_the_outline_after_it():
+    """The prior's width is a share of the object's size, the largest of its priors': when the
+    tracker's estimate shrinks onto a part of the object (a car's wheel) while the last outline,
+    moved by the flow, still covers all of it, the outline stays on the whole object.  With the
+    size of the estimate alone the prior fell off within a wheel's width and the outline
+    followed the estimate onto the wheel."""
+    rng = np.random.default_rng(5)
+    m = np.zeros(SIZE, np.uint8)
+    cv2.rectangle(m, (20, 40), (139, 79), 1, -1)  # the body, 120 x 40
+    m = m.astype(bool)
+    img = frame(m, rng)
+    model = R.ColourModel.learn(img, m)
+    t = np.linspace(0, 2 * np.pi, 100, endpoint=False)
+    wheel = np.column_stack([120 + 12 * np.cos(t), 68 + 12 * np.sin(t)])  # the estimate, on a corner
+    whole = R.mask_polygons(m)[0]
+    alone = R.refine(img, wheel, model, sigma=0.5)
+    both = R.refine(img, wheel, model, sigma=0.5, others=((whole, 1.0),))
+    assert region_similarity(outline_mask(alone.outline, SIZE), m) < 0.6  # the estimate alone: a part
+    assert region_similarity(outline_mask(both.outline, SIZE), m) > 0.9
+
+
 def test_a_large_object_refined_on_the_shrunk_frame_gives_the_same_outline():
     """``work_size``: the region of a large object found on the ROI shrunk to that size is, in
     the frame's pixels, the one found at full size (to a pixel or so)."""
@@ -358,3 +379,18 @@ def test_an_object_a_pole_cuts_in_two_is_outlined_whole():
         fit = ref(img, ellipse_about(m))
     assert len(fit.pieces) == 2
     assert region_similarity(outline_mask(fit.outline, SIZE), m) > 0.9
+
+
+def test_a_region_that_holds_the_whole_object_vouches_for_an_estimate_shrunk_onto_a_part():
+    """The lost verdict's agreement: an estimate shrunk onto a part of the object (a wheel), which
+    the region covers, is held by it though their IoU is small; one beside the object is not."""
+    rng = np.random.default_rng(5)
+    m = np.zeros(SIZE, np.uint8)
+    cv2.rectangle(m, (20, 40), (139, 79), 1, -1)
+    m = m.astype(bool)
+    img = frame(m, rng)
+    t = np.linspace(0, 2 * np.pi, 100, endpoint=False)
+    ref = R.OutlineRefiner(settings(), start=R.mask_polygons(m))
+    ref(img, R.mask_polygons(m)[0], 0.9)  # the first frame: the colours, the region
+    wheel = ref(img, np.column_stack([120 + 12 * np.cos(t), 68 + 12 * np.sin(t)]), 0.2)
+    assert wheel.agreement < R.HOLD_AGREEMENT and wheel.covers > 0.9 and ref.holds(wheel)

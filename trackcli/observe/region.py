@@ -9,7 +9,8 @@ prior (AC ch. 8's posterior fit, here pixel by pixel):
   of two colour histograms (Bibby & Reid 2008's pixel-wise posteriors), the object's learned
   inside the template, the background's in a band about it;
 - the estimate gives a prior log-odds that falls with the signed distance ``d`` from its
-  outline, ``L_s = -d / sigma``, ``sigma`` a fraction of the object's size;
+  outline, ``L_s = -d / sigma``, ``sigma`` a fraction of the object's size (the largest of its
+  priors': an estimate that has shrunk onto a part of the object does not narrow it);
 - a pixel is the object's where ``L_c + L_s > 0`` (both smoothed a little so the region's
   boundary does not follow single pixels), in the connected parts that overlap the estimate.
 
@@ -166,6 +167,7 @@ class RegionFit:
     contrast: float = math.nan  # how the outline's inside stands out in the object's colours (:func:`contrast`)
     scale: float = 1.0         # the ROI's pixels per frame pixel (refine's work_size)
     pieces: tuple = ()         # the outer boundaries of the region's pieces, frame coordinates, largest first
+    covers: float = 0.0        # the share of the estimate's fill inside the region
 
 
 def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, sigma: float = 0.25,
@@ -173,7 +175,8 @@ def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, s
     """The region the colour posterior and the estimate's prior agree on (module docstring).
 
     ``others``: more priors ``(pieces, weight)``, ``pieces`` a polygon ``(P, 2)`` or a list of
-    them (a region in pieces), their log-odds added to the estimate's.  The region's connected
+    them (a region in pieces), their log-odds added to the estimate's; every prior's width is
+    ``sigma`` x the object's size, the square root of the largest of their areas.  The region's connected
     parts kept are those that overlap the estimate; the outline joins them (:func:`joined_outline`:
     a person's legs that a shadow or a pole cuts off are the person's).
     ``work_size``: an object larger than this (px, the square root of its priors' box) is
@@ -215,11 +218,17 @@ def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, s
     L = model.log_ratio(roi)
     if smooth > 0:
         L = cv2.GaussianBlur(L, (0, 0), max(0.5, smooth * f))
-    post = L - signed / (sigma * obj)
+    fills = []
     for o, wt in others:
         ins = np.zeros(inside.shape, np.uint8)
         for piece in o:
             ins |= polygon_fill(shrink(piece), inside.shape)
+        fills.append((ins, wt))
+    if fills:  # the object's size: the largest of its priors' (an estimate shrunk onto a part
+        # of the object, a car's wheel, would otherwise pull the outline after it)
+        obj = math.sqrt(max([area] + [float(np.count_nonzero(i)) for i, _ in fills]))
+    post = L - signed / (sigma * obj)
+    for ins, wt in fills:
         sd = cv2.distanceTransform(1 - ins, cv2.DIST_L2, 3) - cv2.distanceTransform(ins, cv2.DIST_L2, 3)
         post = post - wt * sd / (sigma * obj)
     region = (post > 0).astype(np.uint8)
@@ -237,7 +246,8 @@ def refine(image_bgr: np.ndarray, estimate: np.ndarray, model: ColourModel, *, s
     c = grow_back(joined_outline(pieces))
     inter = np.count_nonzero(region & inside.astype(bool))
     agree = inter / max(np.count_nonzero(region | inside.astype(bool)), 1)
-    return RegionFit(region, (x0, y0), c, float(agree), scale=f, pieces=tuple(grow_back(p) for p in pieces))
+    return RegionFit(region, (x0, y0), c, float(agree), scale=f, pieces=tuple(grow_back(p) for p in pieces),
+                     covers=inter / area)
 
 
 #: the least area of a piece of the region (a share of the estimate's) that the outline takes in
@@ -442,6 +452,9 @@ UPDATE_CONFIDENCE = 0.7
 UPDATE_AGREEMENT = 0.6
 #: the least IoU of a region with the estimate for the region to vouch for its frame (holds)
 HOLD_AGREEMENT = 0.2
+#: ... or the least share of the estimate's fill inside the region (an estimate shrunk onto a
+#: part of the object the region still covers whole)
+HOLD_COVER = 0.5
 #: objects larger than this (px, the square root of the area of their priors' box) are refined
 #: on the frame shrunk to it: the time of a frame no longer grows with the object's size
 WORK_SIZE = 160.0
@@ -489,12 +502,14 @@ class OutlineRefiner:
             return None
         self.model = ColourModel.learn(image, region)
         inside = inside.astype(bool)
-        agree = np.count_nonzero(region & inside) / max(np.count_nonzero(region | inside), 1)
+        inter = np.count_nonzero(region & inside)
+        agree = inter / max(np.count_nonzero(region | inside), 1)
         # every boundary pixel, so that the optical flow moves every part of the boundary
         pieces = outer_pieces(region, least=max(9.0, PIECE_LEAST * area))
         if not pieces:
             return None
-        return RegionFit(region, (0, 0), joined_outline(pieces), float(agree), pieces=tuple(pieces))
+        return RegionFit(region, (0, 0), joined_outline(pieces), float(agree), pieces=tuple(pieces),
+                         covers=inter / max(np.count_nonzero(inside), 1))
 
     def __call__(self, image_bgr: np.ndarray, estimate: np.ndarray, confidence: float = math.nan) -> RegionFit | None:
         """The refined outline of the frame ``image_bgr`` whose estimate is the closed polygon
@@ -547,12 +562,13 @@ class OutlineRefiner:
         """Whether a frame's refined region is evidence enough that the object is held whatever
         the tracker's confidence: its inside stands out from its surroundings in the first
         frame's colours by at least ``settings.lost_contrast`` (:func:`contrast`; 0: never), and
-        it still agrees with the estimate (IoU at least :data:`HOLD_AGREEMENT`).  A region that
-        has parted from the estimate vouches for neither: on a cluttered clip it is as often on a
-        look-alike of the object's colours as on the object."""
+        it still agrees with the estimate (IoU at least :data:`HOLD_AGREEMENT`, or the estimate
+        at least :data:`HOLD_COVER` inside it: an estimate shrunk onto a wheel of the car the
+        region holds).  A region that has parted from the estimate vouches for neither: on a
+        cluttered clip it is as often on a look-alike of the object's colours as on the object."""
         t = self.settings.lost_contrast
         return (fit is not None and t > 0 and math.isfinite(fit.contrast) and fit.contrast >= t
-                and fit.agreement >= HOLD_AGREEMENT)
+                and (fit.agreement >= HOLD_AGREEMENT or fit.covers >= HOLD_COVER))
 
 
 def outline_refiner(settings, space, start=None) -> OutlineRefiner | None:
