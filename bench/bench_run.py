@@ -215,6 +215,9 @@ def _wide(args: argparse.Namespace, work: Path) -> None:
     if len(rows) > 1:
         m = np.mean(rows, axis=0)
         print(f"{'mean (' + str(len(rows)) + ')':<20}{'':>7}{'':>8}{'':>11}{m[0]:>15.1f}{m[1]:>13.1f}{m[2]:>14.1f}")
+        # a short clip whose start-up run happened to be slow gives a wild net rate: the median holds
+        md = np.median(rows, axis=0)
+        print(f"{'median':<20}{'':>7}{'':>8}{'':>11}{md[0]:>15.1f}{md[1]:>13.1f}{md[2]:>14.1f}")
     print(f"load average {os.getloadavg()[0]:.2f}")
 
 
