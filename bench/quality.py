@@ -44,10 +44,11 @@ Usage::
 
     python bench/quality.py [--seeds 1,2,3] [--footage DIR] [--peers] [--only NAME ...]
         [--json FILE] [--grey] [--scale F] [--every K] [--start F] [--reverse] [--noise S] [--jpeg Q]
-        [--outline] [--runs K]
+        [--outline] [--runs K] [--extra "TRACK OPTIONS"]
         [-- EXTRA TRACK OPTIONS]
 
-Everything after ``--`` is passed to ``trackcli track`` (e.g. ``-- --particles 1000``).
+``--extra`` (one string, split at spaces, as ``bench/davis.py`` takes it) and everything after
+``--`` are passed to ``trackcli track`` (e.g. ``--extra "-c off.yaml"`` or ``-- --particles 1000``).
 ``--runs K`` tracks every clip with seeds 0..K-1 and averages the scores: one run of a particle
 filter on one clip is a noisy measurement.
 """
@@ -476,7 +477,10 @@ def main() -> None:
                          "clips without one (no masks/) are left out")
     ap.add_argument("--runs", type=int, default=1,
                     help="track every clip with --seed 0..RUNS-1 and average the scores (frame counts are summed)")
+    ap.add_argument("--extra", default="",
+                    help="extra options for `trackcli track`, one string (e.g. \"-c off.yaml\"); before those after --")
     args = ap.parse_args(argv)
+    extra = [*args.extra.split(), *extra]
 
     seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
     args.cache.mkdir(parents=True, exist_ok=True)
