@@ -26,7 +26,12 @@ OpenCV's CSRT box (``csrt``, needs ``opencv-contrib-python-headless``).
 Usage::
 
     python bench/davis.py [FOLDER ...] [--only a,b] [--box] [--baseline] [--json OUT.json]
+        [--extra "TRACK OPTIONS"] [--work DIR] [--templates DIR]
     python bench/davis.py [FOLDER ...] --template-only [--box] [--draw-extra "--n-ctrl 12"]
+
+``--templates DIR`` takes the templates an earlier run left in its ``--work DIR`` instead of
+drawing them again (the draw is most of a run's time on short sequences): runs that differ
+only in ``--extra`` then track from the very same templates.
 
 With ``--template-only`` only the frame-0 templates are drawn and scored (``tmpl``, the number
 of control points ``ctrl``, the draw's time in seconds and the fit's note from the template's
@@ -119,33 +124,40 @@ def lost_truth(pred: list[np.ndarray], truth: list[np.ndarray], lost: np.ndarray
     return {"off": len(off), "flag_off": sum(off), "held": len(held), "flag_held": sum(held)}
 
 
-def draw_template(seq: Sequence, work: Path, *, box: bool, draw_extra: list[str] = ()) -> dict:
+def draw_template(seq: Sequence, work: Path, *, box: bool, draw_extra: list[str] = (),
+                  templates: Path | None = None) -> dict:
     """``draw`` on the sequence's first frame (its mask, or with ``box`` the mask's tight box):
-    the template's J against that mask (``tmpl``), its control points, how it was made."""
+    the template's J against that mask (``tmpl``), its control points, how it was made.  With
+    ``templates``, a folder where ``NAME.template.yaml`` is found is used instead of drawing."""
     from trackcli.shapes.spline import dense_polygon
     from trackcli.shapes.template import load_template
 
     truth0 = read_mask(mask_files(seq.masks)[0])
     tmpl = work / f"{seq.name}.template.yaml"
-    how = ["--box", ",".join(f"{v:g}" for v in tight_box(truth0))] if box else ["--mask", str(mask_files(seq.masks)[0])]
-    t0 = time.perf_counter()
-    r = _cli("draw", str(seq.frames), *how, "-o", str(tmpl), "--preview", str(work / f"{seq.name}.template.png"),
-             *draw_extra)
-    wall = time.perf_counter() - t0
-    if r.returncode:
-        return {"name": seq.name, "error": "draw: " + _last_line(r)}
+    wall = 0.0
+    if templates is not None and (templates / tmpl.name).is_file():
+        tmpl = templates / tmpl.name  # drawn by an earlier run: the same template, not drawn again
+    else:
+        how = ["--box", ",".join(f"{v:g}" for v in tight_box(truth0))] if box else ["--mask", str(mask_files(seq.masks)[0])]
+        t0 = time.perf_counter()
+        r = _cli("draw", str(seq.frames), *how, "-o", str(tmpl), "--preview", str(work / f"{seq.name}.template.png"),
+                 *draw_extra)
+        wall = time.perf_counter() - t0
+        if r.returncode:
+            return {"name": seq.name, "error": "draw: " + _last_line(r)}
     t = load_template(tmpl)
     tmpl_j = float(score_masks([outline_mask(dense_polygon(t.Q, t.basis(), 400), truth0.shape)], [truth0]).J[0])
     return {"name": seq.name, "tmpl": tmpl_j, "n_ctrl": t.n_ctrl, "source": t.source, "draw_wall": wall,
             "template": tmpl}
 
 
-def run_sequence(seq: Sequence, work: Path, *, box: bool, extra: list[str], draw_extra: list[str] = ()) -> dict:
+def run_sequence(seq: Sequence, work: Path, *, box: bool, extra: list[str], draw_extra: list[str] = (),
+                 templates: Path | None = None) -> dict:
     from trackcli.io.tracks import read_columns, read_outlines
 
     truth = [read_mask(f) for f in mask_files(seq.masks)]
     shape = truth[0].shape
-    drawn = draw_template(seq, work, box=box, draw_extra=draw_extra)
+    drawn = draw_template(seq, work, box=box, draw_extra=draw_extra, templates=templates)
     if "error" in drawn:
         return drawn
     tmpl, tmpl_j = drawn["template"], drawn["tmpl"]
@@ -232,6 +244,9 @@ def main() -> None:
     ap.add_argument("--json", type=Path, help="write every figure to this JSON file")
     ap.add_argument("--extra", default="", help="extra options for `trackcli track`, one string")
     ap.add_argument("--draw-extra", default="", help="extra options for `trackcli draw`, one string")
+    ap.add_argument("--templates", type=Path,
+                    help="use the templates NAME.template.yaml found in this folder (an earlier run's --work) "
+                         "instead of drawing them again; sequences without one are drawn")
     ap.add_argument("--template-only", action="store_true",
                     help="only draw the frame-0 templates and score them against the first mask (no tracking)")
     a = ap.parse_args()
@@ -252,7 +267,8 @@ def main() -> None:
         head += f" {'still':>5} {'csrt':>5}"
     print(head)
     for seq in seqs:
-        r = run_sequence(seq, work, box=a.box, extra=a.extra.split(), draw_extra=a.draw_extra.split())
+        r = run_sequence(seq, work, box=a.box, extra=a.extra.split(), draw_extra=a.draw_extra.split(),
+                         templates=a.templates)
         if a.baseline:
             r.update(baselines(seq))
         r.pop("template", None)

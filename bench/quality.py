@@ -44,11 +44,14 @@ Usage::
 
     python bench/quality.py [--seeds 1,2,3] [--footage DIR] [--peers] [--only NAME ...]
         [--json FILE] [--grey] [--scale F] [--every K] [--start F] [--reverse] [--noise S] [--jpeg Q]
-        [--outline] [--runs K]
+        [--outline] [--runs K] [--extra "TRACK OPTIONS"] [--keep DIR] [--templates DIR]
         [-- EXTRA TRACK OPTIONS]
 
-Everything after ``--`` is passed to ``trackcli track`` (e.g. ``-- --particles 1000``).
-``--runs K`` tracks every clip with seeds 0..K-1 and averages the scores: one run of a particle
+``--extra`` (one string, split at spaces, as ``bench/davis.py`` takes it) and everything after
+``--`` are passed to ``trackcli track`` (e.g. ``--extra "-c off.yaml"`` or ``-- --particles 1000``).
+``--templates DIR`` takes the templates an earlier run left in its ``--keep DIR`` instead of
+drawing them again, so that runs that differ only in their track options start from the very
+same templates.  ``--runs K`` tracks every clip with seeds 0..K-1 and averages the scores: one run of a particle
 filter on one clip is a noisy measurement.
 """
 
@@ -241,13 +244,13 @@ def _lost_flags(csv: Path, frames: np.ndarray) -> np.ndarray:
 
 
 def run_trackcli_seeds(clip: Clip, work: Path, extra: list[str], runs: int,
-                      outline: bool = False) -> tuple[dict, float]:
+                      outline: bool = False, templates: Path | None = None) -> tuple[dict, float]:
     """:func:`run_trackcli` with ``--seed 0 .. runs-1``; scores averaged (counts summed)."""
     if runs <= 1:
-        return run_trackcli(clip, work, extra, outline)
+        return run_trackcli(clip, work, extra, outline, templates)
     results, wall = [], 0.0
     for seed in range(runs):
-        res, w = run_trackcli(clip, work, [*extra, "--seed", str(seed)], outline)
+        res, w = run_trackcli(clip, work, [*extra, "--seed", str(seed)], outline, templates)
         if "error" in res:
             return res, w
         results.append(res)
@@ -264,9 +267,14 @@ def mean_scores(results: list[dict]) -> dict:
     return out
 
 
-def run_trackcli(clip: Clip, work: Path, extra: list[str], outline: bool = False) -> tuple[dict, float]:
+def run_trackcli(clip: Clip, work: Path, extra: list[str], outline: bool = False,
+                 templates: Path | None = None) -> tuple[dict, float]:
     """Draw the template from the frame-0 box (or true outline), track with ``extra`` options,
-    score: ``(scores, wall s)``."""
+    score: ``(scores, wall s)``.  With ``templates``, a folder where ``NAME.template.yaml`` is
+    found (an earlier run's ``--keep``), that template is used instead of drawing one."""
+    reuse = templates / f"{clip.name}.template.yaml" if templates is not None else None
+    if reuse is not None and reuse.is_file():
+        return track_and_score(clip, reuse, work, extra)
     tmpl, error = draw_template(clip, work, outline)
     if error:
         return {"error": error}, 0.0
@@ -476,7 +484,13 @@ def main() -> None:
                          "clips without one (no masks/) are left out")
     ap.add_argument("--runs", type=int, default=1,
                     help="track every clip with --seed 0..RUNS-1 and average the scores (frame counts are summed)")
+    ap.add_argument("--templates", type=Path,
+                    help="use the templates NAME.template.yaml found in this folder (an earlier run's --keep) instead "
+                         "of drawing them again; clips without one are drawn")
+    ap.add_argument("--extra", default="",
+                    help="extra options for `trackcli track`, one string (e.g. \"-c off.yaml\"); before those after --")
     args = ap.parse_args(argv)
+    extra = [*args.extra.split(), *extra]
 
     seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
     args.cache.mkdir(parents=True, exist_ok=True)
@@ -505,7 +519,7 @@ def main() -> None:
     print(head + peer_head)
     results = {}
     for clip in clips:
-        res, wall = run_trackcli_seeds(clip, work, extra, args.runs, args.outline)
+        res, wall = run_trackcli_seeds(clip, work, extra, args.runs, args.outline, args.templates)
         results[clip.name] = res
         if "error" in res:
             print(f"{clip.name:<22} {res['error']}")
