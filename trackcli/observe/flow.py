@@ -15,6 +15,16 @@ drawn from ``g``), so that the weighted set stays a fair sample of the prior and
 by the likelihood, of the posterior.  The flow changes where the samples are looked for, not
 what the posterior is: a flow that is wrong wastes a share of the samples, and the likelihood
 decides between the flow's place and the prior's.
+
+How large a share ``q`` to draw from ``g`` is learned as the frames go (:class:`AdaptiveShare`):
+the adaptive mixture importance sampling of population Monte Carlo (Douc, Guillin, Marin & Robert
+2007) sets each component's share of the next draw to the posterior mass it is responsible for,
+``q' = sum_i w_i q g(x_i) / ((1 - q) f(x_i) + q g(x_i))`` (``w_i`` the normalised posterior
+weights), i.e. one EM step toward the mixture nearest the posterior.  Where the flow's place is
+where the likelihood puts the object and the prior's is not (a dash, a turn) the share grows; where
+the flow is unreliable (a small fast ball, a region whose flow is the background's) it shrinks,
+and fewer samples are spent on it.  The weights are right for any ``q``, so ``q`` may follow
+the past frames.
 """
 
 from __future__ import annotations
@@ -23,13 +33,17 @@ import math
 
 import numpy as np
 
-__all__ = ["FLOW_SPREAD", "mixture_log_correction", "prior_log_density", "flow_proposal"]
+__all__ = ["FLOW_SPREAD", "AdaptiveShare", "FlowProposal", "mixture_log_correction", "prior_log_density",
+           "flow_proposal"]
 
 #: standard deviation (per axis) of the flow proposal about its prediction, in object sizes
 #: (at least :data:`MIN_SPREAD` px): the median flow is good to about a pixel, the estimate it
 #: is added to less so
 FLOW_SPREAD = 0.05
 MIN_SPREAD = 1.0
+#: how far the flow proposal's share moves toward the posterior weight its samples earned, each
+#: frame (:class:`AdaptiveShare`): one frame whose flow misled halves the share, not more
+SHARE_RATE = 0.5
 #: smallest standard deviation (px per axis) of the Gaussian core fitted to the prior's samples:
 #: a set that has collapsed onto one place still has a density
 MIN_CORE = 0.5
@@ -78,8 +92,7 @@ def mixture_log_correction(log_f: np.ndarray, log_g: np.ndarray, share: float) -
     return np.where(np.isneginf(log_f), -np.inf, out)
 
 
-def flow_proposal(centre: np.ndarray, spread: float, fraction: float, *, jump_share: float = 0.0,
-                  jump_rms: float = 0.0):
+class FlowProposal:
     """An importance-sampling step for CONDENSATION from the flow's prediction (module docstring).
 
     A share ``fraction`` of the predicted samples (chosen at random) has its translation redrawn
@@ -90,24 +103,69 @@ def flow_proposal(centre: np.ndarray, spread: float, fraction: float, *, jump_sh
     ``f`` from :func:`prior_log_density` of the predicted translations (``jump_share`` and
     ``jump_rms``: the motion prior's jumps, which the predicted samples already carry).
 
-    Returns ``propose(prev, predicted, rng) -> (prev, shapes, log_correction)`` for
-    :func:`trackcli.trackers.condensation.step`.
+    Called as ``propose(prev, predicted, rng) -> (prev, shapes, log_correction)`` for
+    :func:`trackcli.trackers.condensation.step`; afterwards :attr:`responsibility` (n,) holds
+    each sample's ``r g / ((1 - r) f + r g)`` with ``r`` the share ``reference`` (``fraction``
+    unless given): the probability that a mixture with that share drew it from ``g`` (None
+    before a call or when no sample was drawn from ``g``).
     """
-    centre = np.asarray(centre, dtype=np.float64)[:2]
-    var = np.full(2, float(spread) ** 2)
 
-    def propose(prev: np.ndarray, new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def __init__(self, centre: np.ndarray, spread: float, fraction: float, *, jump_share: float = 0.0,
+                 jump_rms: float = 0.0, reference: float | None = None) -> None:
+        self.reference = float(fraction if reference is None else reference)
+        self.centre = np.asarray(centre, dtype=np.float64)[:2]
+        self.spread = np.broadcast_to(np.asarray(spread, dtype=np.float64), (2,)).copy()
+        self.fraction = float(fraction)
+        self.jump_share, self.jump_rms = jump_share, jump_rms
+        self.responsibility: np.ndarray | None = None
+
+    def __call__(self, prev: np.ndarray, new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         n = new.shape[0]
-        k = int(round(fraction * n))
+        k = int(round(self.fraction * n))
+        self.responsibility = None
         if k == 0:
             return prev, new, np.zeros(n)
         t_prior = new[:, :2]
         out = new.copy()
         idx = rng.choice(n, size=k, replace=False)
-        out[idx, :2] = centre + float(spread) * rng.standard_normal((k, 2))
+        out[idx, :2] = self.centre + self.spread * rng.standard_normal((k, 2))
         t = out[:, :2]
-        log_f = prior_log_density(t, t_prior, jump_share, jump_rms)
-        log_g = _log_gauss2_diag(t - centre, var)
-        return prev, out, mixture_log_correction(log_f, log_g, k / n)
+        q = k / n
+        log_f = prior_log_density(t, t_prior, self.jump_share, self.jump_rms)
+        log_g = _log_gauss2_diag(t - self.centre, self.spread**2)
+        log_c = mixture_log_correction(log_f, log_g, q)
+        r = min(max(self.reference, 1e-12), 1.0)
+        log_rg = math.log(r) + log_g
+        log_mix = np.logaddexp(math.log1p(-r) + log_f if r < 1 else -np.inf, log_rg)
+        self.responsibility = np.exp(np.minimum(log_rg - log_mix, 0.0))
+        return prev, out, log_c
 
-    return propose
+
+def flow_proposal(centre: np.ndarray, spread: float, fraction: float, *, jump_share: float = 0.0,
+                  jump_rms: float = 0.0, reference: float | None = None) -> FlowProposal:
+    """The flow's importance-sampling step (:class:`FlowProposal`)."""
+    return FlowProposal(centre, spread, fraction, jump_share=jump_share, jump_rms=jump_rms, reference=reference)
+
+
+class AdaptiveShare:
+    """The share of the samples the flow proposal draws, learned from the posterior (module
+    docstring): starts at ``largest``; after each frame whose samples it drew, the posterior
+    mass the proposal is responsible for, clipped to ``[least, largest]``.  With ``least >=
+    largest`` the share is fixed."""
+
+    def __init__(self, largest: float, least: float) -> None:
+        self.largest = float(largest)
+        self.least = min(float(least), self.largest)
+        self.share = self.largest
+
+    def update(self, weights: np.ndarray, responsibility: np.ndarray | None) -> float:
+        """The share for the next frame from this frame's normalised posterior ``weights`` (n,)
+        and :attr:`FlowProposal.responsibility` (unchanged when it is None or the weights are not
+        a distribution)."""
+        if responsibility is not None:
+            w = np.asarray(weights, dtype=np.float64)
+            total = float(w.sum())
+            if np.isfinite(total) and total > 0 and responsibility.shape == w.shape:
+                earned = float(w @ responsibility) / total
+                self.share = float(np.clip(self.share + SHARE_RATE * (earned - self.share), self.least, self.largest))
+        return self.share

@@ -374,6 +374,25 @@ class FlowPrior:
         d = self._flow[lo[1]:hi[1], lo[0]:hi[0]][inside]
         return np.median(d, axis=0).astype(np.float64) / FLOW_SCALE
 
+    def shift_spread(self, outline: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """:meth:`shift` and how much the flow over the region disagrees with it: the median
+        absolute deviation of the flow from its median per axis, as a standard deviation (2,),
+        px.  Large where the region holds more than one motion (an object and the background it
+        moves against, a ball that has just turned back), small for one rigid move."""
+        m = self.shift(outline)
+        if m is None:
+            return None
+        p = np.asarray(outline, dtype=np.float64).reshape(-1, 2) * FLOW_SCALE
+        h, w = self._flow.shape[:2]
+        lo = np.maximum(np.floor(p.min(axis=0)).astype(int), 0)
+        hi = np.minimum(np.ceil(p.max(axis=0)).astype(int) + 1, [w, h])
+        import cv2
+
+        mask = np.zeros((hi[1] - lo[1], hi[0] - lo[0]), np.uint8)
+        cv2.fillPoly(mask, [np.round(p - lo).astype(np.int32)], 1)
+        d = self._flow[lo[1]:hi[1], lo[0]:hi[0]][mask.astype(bool)].astype(np.float64) / FLOW_SCALE
+        return m, 1.4826 * np.median(np.abs(d - m), axis=0)
+
 
 def resample_closed(points: np.ndarray, n: int) -> np.ndarray:
     """``n`` points equally spaced along a closed polygon, clockwise on screen from its top."""

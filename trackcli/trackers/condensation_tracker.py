@@ -287,6 +287,10 @@ class CondensationTracker(Tracker):
                      else None)
         self.last_X: np.ndarray | None = None
         self.last_contour: np.ndarray | None = None
+        # its share of the samples, learned from the posterior weight its samples earn, and
+        # this frame's draw (None: not used)
+        self.flow_share = flow_cue.AdaptiveShare(c.flow_fraction, c.flow_least)
+        self.flow_draw: flow_cue.FlowProposal | None = None
 
     def _start(self, frame: FrameData) -> None:
         c, space = self.settings.condensation, self.space
@@ -321,14 +325,17 @@ class CondensationTracker(Tracker):
         no flow yet, or the region out of the frame."""
         if self.flow is None or self.last_contour is None:
             return None
-        d = self.flow.shift(self.last_contour)
-        if d is None or not np.all(np.isfinite(d)):
+        got = self.flow.shift_spread(self.last_contour)
+        if got is None or not np.all(np.isfinite(got[0])) or not np.all(np.isfinite(got[1])):
             return None
+        d, disagree = got
         size = self.observation.presence.app.size
         j = self.settings.jumps
-        spread = max(flow_cue.MIN_SPREAD, flow_cue.FLOW_SPREAD * size)
-        return flow_cue.flow_proposal(self.last_X[:2] + d, spread, self.settings.condensation.flow_fraction,
-                                      jump_share=min(j.fraction + j.brake, 1.0), jump_rms=j.size * size)
+        spread = np.maximum(max(flow_cue.MIN_SPREAD, flow_cue.FLOW_SPREAD * size), disagree)
+        self.flow_draw = flow_cue.flow_proposal(self.last_X[:2] + d, spread, self.flow_share.share,
+                                                jump_share=min(j.fraction + j.brake, 1.0), jump_rms=j.size * size,
+                                                reference=self.flow_share.largest)
+        return self.flow_draw
 
     def _scale_search(self) -> reacquire.ScaleSearch | None:
         """The re-acquisition's scale search, or None: not asked for, a space without scale,
@@ -351,6 +358,7 @@ class CondensationTracker(Tracker):
             self._start(frame)
         if self.flow is not None:
             self.flow.push(frame.image)
+        self.flow_draw = None
         ev = obs.prepare(frame, self.centre)
         fimg = ev.fimg  # without letterbox bars
 
@@ -371,6 +379,8 @@ class CondensationTracker(Tracker):
         self.particles = particles
         self.k += 1
         w = particles.weights
+        if self.flow_draw is not None:
+            self.flow_share.update(w, self.flow_draw.responsibility)
         X = cond.weighted_mean(particles)
         dev = particles.cur - X
         X_std = np.sqrt(np.maximum(w @ (dev * dev), 0.0))
