@@ -216,3 +216,59 @@ def test_the_refinement_shares_the_trackers_flow_and_draws_the_same_outlines():
         b = shared(img, est)
         assert np.array_equal(a.outline, b.outline)
     assert len(calls) == len(frames)  # only the tracker pushed
+
+
+# ---------------------------------------------------------------------------------------------
+# The adaptive share
+
+
+def test_the_responsibilities_follow_where_the_proposal_put_its_samples():
+    """Each sample's responsibility is the chance that the mixture at the reference share drew
+    it from the flow's proposal: near 1 where only the proposal reaches, near 0 where only the
+    prior does."""
+    rng = np.random.default_rng(4)
+    n = 4000
+    t = np.array([0.0, 0.0]) + 2.0 * rng.standard_normal((n, 2))
+    new = np.column_stack([t, np.zeros((n, 2))])
+    propose = F.flow_proposal(np.array([30.0, 0.0]), 1.0, 0.2, reference=0.25)
+    _, out, _ = propose(new - 1.0, new, rng)
+    r = propose.responsibility
+    moved = (out[:, :2] != new[:, :2]).any(axis=1)
+    assert r.shape == (n,) and np.all((r >= 0) & (r <= 1))
+    assert r[moved].min() > 0.99 and r[~moved].max() < 0.01
+
+
+def test_the_share_follows_the_weight_the_proposals_samples_earn():
+    share = F.AdaptiveShare(0.25, 0.02)
+    assert share.share == 0.25
+    w = np.full(10, 0.1)
+    earned_nothing = np.zeros(10)
+    assert share.update(w, earned_nothing) == pytest.approx(0.125)  # halfway toward what was earned
+    for _ in range(10):
+        share.update(w, earned_nothing)
+    assert share.share == pytest.approx(0.02)  # never below the least
+    earned_all = np.ones(10)
+    assert share.update(w, earned_all) == pytest.approx(0.25)  # capped at the largest
+    assert share.update(w, None) == pytest.approx(0.25)  # a frame without the proposal: unchanged
+    assert share.update(w * 0.0, earned_nothing) == pytest.approx(0.25)  # no distribution: unchanged
+    fixed = F.AdaptiveShare(0.25, 0.25)
+    assert fixed.update(w, earned_nothing) == 0.25  # least = largest: a fixed share
+
+
+def test_the_flows_disagreement_over_a_region_is_small_for_one_move_and_large_for_two():
+    """Two ovals side by side move 12 px toward each other: over one of them the flow agrees
+    with its median; over a region that takes in both it does not (along x)."""
+    back = background(np.random.default_rng(0))
+    a, b = back.copy(), back.copy()
+    for img, dx in ((a, 0.0), (b, 12.0)):
+        cv2.ellipse(img, ((110.0 + dx, 120.0), (60.0, 80.0), 0.0), (40, 60, 150), -1, cv2.LINE_AA)
+        cv2.ellipse(img, ((210.0 - dx, 120.0), (60.0, 80.0), 0.0), (150, 60, 40), -1, cv2.LINE_AA)
+    t = np.linspace(0.0, 2 * np.pi, 40, endpoint=False)
+    flow = FlowPrior()
+    flow.push(a)
+    flow.push(b)
+    d, spread = flow.shift_spread(np.column_stack([110.0 + 26.0 * np.cos(t), 120.0 + 36.0 * np.sin(t)]))
+    assert np.allclose(d, (12.0, 0.0), atol=1.5) and np.all(spread < 1.5), (d, spread)
+    d, spread = flow.shift_spread(np.column_stack([160.0 + 75.0 * np.cos(t), 120.0 + 36.0 * np.sin(t)]))
+    assert spread[0] > 8.0 and spread[1] < 1.5, spread
+    assert flow.shift_spread(np.column_stack([1000.0 + 26.0 * np.cos(t), 120.0 + 36.0 * np.sin(t)])) is None
