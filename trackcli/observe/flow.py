@@ -47,6 +47,8 @@ SHARE_RATE = 0.5
 #: smallest standard deviation (px per axis) of the Gaussian core fitted to the prior's samples:
 #: a set that has collapsed onto one place still has a density
 MIN_CORE = 0.5
+#: most kernels of the prior's density estimate (:func:`prior_log_density`)
+KERNELS = 400
 
 
 def _log_gauss2_diag(d: np.ndarray, var: np.ndarray) -> np.ndarray:
@@ -54,26 +56,42 @@ def _log_gauss2_diag(d: np.ndarray, var: np.ndarray) -> np.ndarray:
     return -0.5 * (d * d / var).sum(axis=1) - 0.5 * float(np.log(var).sum()) - math.log(2 * math.pi)
 
 
-def prior_log_density(t: np.ndarray, samples: np.ndarray, jump_share: float = 0.0, jump_rms: float = 0.0):
+def prior_log_density(t: np.ndarray, samples: np.ndarray, jump_share: float = 0.0, jump_rms: float = 0.0,
+                      rng: np.random.Generator | None = None):
     """An approximation of the density the prior's samples ``samples`` (n, 2) of translation were
     drawn from, evaluated at ``t`` (m, 2).
 
     The motion prior is the AR(2) prediction with, for a share ``jump_share`` of the samples, an
     isotropic jump of ``jump_rms`` px per axis (the motion prior's jumps, settings ``jumps``):
-    ``f = (1 - J) N(m, C) + J N(m, C + s^2 I)``, ``m`` the samples' median and ``C`` the diagonal
-    covariance of their median absolute deviations (robust to the jumped samples among them;
-    at least :data:`MIN_CORE` px per axis).  The jumps give ``f`` the heavy tails the weights
-    of samples drawn far from the prediction need.
+    ``f = (1 - J) K + J N(m, C + s^2 I)``.  ``K`` is a kernel density estimate over the samples
+    (Gaussian kernels, Silverman's width ``sd n^(-1/6)`` per axis from the samples' median absolute
+    deviations, at least :data:`MIN_CORE` px; at most :data:`KERNELS` of the samples, drawn with
+    ``rng``, as centres), which keeps the modes of a prior with more than one (a ball that may
+    fly on or bounce); ``m`` is the samples' median and ``C`` the diagonal covariance of their
+    median absolute deviations.  The jumps give ``f`` the heavy tails the weights of samples
+    drawn far from the prediction need.
     """
     s = np.asarray(samples, dtype=np.float64)
+    n = len(s)
     m = np.median(s, axis=0)
-    mad = np.median(np.abs(s - m), axis=0) * 1.4826
-    var = np.maximum(mad, MIN_CORE) ** 2
+    sd = np.maximum(np.median(np.abs(s - m), axis=0) * 1.4826, MIN_CORE)
     d = np.asarray(t, dtype=np.float64) - m
-    core = _log_gauss2_diag(d, var)
+    centres = s
+    if n > KERNELS:
+        pick = (rng or np.random.default_rng(0)).choice(n, size=KERNELS, replace=False)
+        centres = s[pick]
+    h2 = np.maximum(sd * len(centres) ** (-1.0 / 6.0), MIN_CORE) ** 2
+    tt = np.asarray(t, dtype=np.float64)
+    core = np.empty(len(tt))
+    for a in range(0, len(tt), 256):  # (block, kernels) at a time
+        q = (tt[a:a + 256, None, :] - centres[None, :, :]) ** 2 / h2
+        e = -0.5 * q.sum(axis=2)
+        top = e.max(axis=1)
+        core[a:a + 256] = top + np.log(np.exp(e - top[:, None]).sum(axis=1))
+    core += -math.log(len(centres)) - 0.5 * float(np.log(h2).sum()) - math.log(2 * math.pi)
     if jump_share <= 0 or jump_rms <= 0:
         return core
-    wide = _log_gauss2_diag(d, var + jump_rms**2)
+    wide = _log_gauss2_diag(d, sd**2 + jump_rms**2)
     if jump_share >= 1:
         return wide
     return np.logaddexp(math.log1p(-jump_share) + core, math.log(jump_share) + wide)
@@ -131,7 +149,7 @@ class FlowProposal:
         out[idx, :2] = self.centre + self.spread * rng.standard_normal((k, 2))
         t = out[:, :2]
         q = k / n
-        log_f = prior_log_density(t, t_prior, self.jump_share, self.jump_rms)
+        log_f = prior_log_density(t, t_prior, self.jump_share, self.jump_rms, rng)
         log_g = _log_gauss2_diag(t - self.centre, self.spread**2)
         log_c = mixture_log_correction(log_f, log_g, q)
         r = min(max(self.reference, 1e-12), 1.0)
