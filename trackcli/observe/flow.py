@@ -30,6 +30,7 @@ the past frames.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -129,7 +130,9 @@ class FlowProposal:
     """
 
     def __init__(self, centre: np.ndarray, spread: float, fraction: float, *, jump_share: float = 0.0,
-                 jump_rms: float = 0.0, reference: float | None = None) -> None:
+                 jump_rms: float = 0.0, reference: float | None = None,
+                 groups: Callable[[], np.ndarray | None] | None = None) -> None:
+        self.groups = groups
         self.reference = float(fraction if reference is None else reference)
         self.centre = np.asarray(centre, dtype=np.float64)[:2]
         self.spread = np.broadcast_to(np.asarray(spread, dtype=np.float64), (2,)).copy()
@@ -149,7 +152,14 @@ class FlowProposal:
         out[idx, :2] = self.centre + self.spread * rng.standard_normal((k, 2))
         t = out[:, :2]
         q = k / n
-        log_f = prior_log_density(t, t_prior, self.jump_share, self.jump_rms, rng)
+        labels = self.groups() if self.groups is not None else None
+        if labels is None or len(labels) != n:
+            log_f = prior_log_density(t, t_prior, self.jump_share, self.jump_rms, rng)
+        else:  # a sample keeps its label: the prior's density of its place given that label
+            log_f = np.empty(n)
+            for label in np.unique(labels):
+                g = labels == label
+                log_f[g] = prior_log_density(t[g], t_prior[g], self.jump_share, self.jump_rms, rng)
         log_g = _log_gauss2_diag(t - self.centre, self.spread**2)
         log_c = mixture_log_correction(log_f, log_g, q)
         r = min(max(self.reference, 1e-12), 1.0)
@@ -160,9 +170,11 @@ class FlowProposal:
 
 
 def flow_proposal(centre: np.ndarray, spread: float, fraction: float, *, jump_share: float = 0.0,
-                  jump_rms: float = 0.0, reference: float | None = None) -> FlowProposal:
+                  jump_rms: float = 0.0, reference: float | None = None,
+                  groups: Callable[[], np.ndarray | None] | None = None) -> FlowProposal:
     """The flow's importance-sampling step (:class:`FlowProposal`)."""
-    return FlowProposal(centre, spread, fraction, jump_share=jump_share, jump_rms=jump_rms, reference=reference)
+    return FlowProposal(centre, spread, fraction, jump_share=jump_share, jump_rms=jump_rms, reference=reference,
+                        groups=groups)
 
 
 class AdaptiveShare:
@@ -175,6 +187,25 @@ class AdaptiveShare:
         self.largest = float(largest)
         self.least = min(float(least), self.largest)
         self.share = self.largest
+        #: how far (px per axis, rms) the posterior's samples the proposal is responsible for lie
+        #: from its centre, followed as the share is (None before the first frame)
+        self.error: np.ndarray | None = None
+
+    def update_error(self, weights: np.ndarray, responsibility: np.ndarray | None, offsets: np.ndarray) -> None:
+        """Follow :attr:`error` from this frame's posterior ``weights`` (n,), the proposal's
+        :attr:`FlowProposal.responsibility` and the samples' ``offsets`` (n, 2) from its centre:
+        the EM update of the proposal's variance, ``sum w r d^2 / sum w r``."""
+        if responsibility is None:
+            return
+        w = np.asarray(weights, dtype=np.float64) * responsibility
+        total = float(w.sum())
+        if not np.isfinite(total) or total <= 1e-12:
+            return
+        e2 = (w @ (np.asarray(offsets, dtype=np.float64) ** 2)) / total
+        if not np.all(np.isfinite(e2)):
+            return
+        old = e2 if self.error is None else self.error**2
+        self.error = np.sqrt(old + SHARE_RATE * (e2 - old))
 
     def update(self, weights: np.ndarray, responsibility: np.ndarray | None) -> float:
         """The share for the next frame from this frame's normalised posterior ``weights`` (n,)

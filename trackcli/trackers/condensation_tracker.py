@@ -332,9 +332,12 @@ class CondensationTracker(Tracker):
         size = self.observation.presence.app.size
         j = self.settings.jumps
         spread = np.maximum(max(flow_cue.MIN_SPREAD, flow_cue.FLOW_SPREAD * size), disagree)
+        if self.flow_share.error is not None:  # as far off as the flow's samples were found
+            spread = np.maximum(spread, np.minimum(self.flow_share.error, j.size * size))
         self.flow_draw = flow_cue.flow_proposal(self.last_X[:2] + d, spread, self.flow_share.share,
                                                 jump_share=min(j.fraction + j.brake, 1.0), jump_rms=j.size * size,
-                                                reference=self.flow_share.largest)
+                                                reference=self.flow_share.largest,
+                                                groups=(lambda: self.labels.moved) if self.mixed is not None else None)
         return self.flow_draw
 
     def _scale_search(self) -> reacquire.ScaleSearch | None:
@@ -380,6 +383,8 @@ class CondensationTracker(Tracker):
         self.k += 1
         w = particles.weights
         if self.flow_draw is not None:
+            self.flow_share.update_error(w, self.flow_draw.responsibility,
+                                         particles.cur[:, :2] - self.flow_draw.centre)
             self.flow_share.update(w, self.flow_draw.responsibility)
         X = cond.weighted_mean(particles)
         dev = particles.cur - X
