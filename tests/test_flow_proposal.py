@@ -272,3 +272,29 @@ def test_the_flows_disagreement_over_a_region_is_small_for_one_move_and_large_fo
     d, spread = flow.shift_spread(np.column_stack([160.0 + 75.0 * np.cos(t), 120.0 + 36.0 * np.sin(t)]))
     assert spread[0] > 8.0 and spread[1] < 1.5, spread
     assert flow.shift_spread(np.column_stack([1000.0 + 26.0 * np.cos(t), 120.0 + 36.0 * np.sin(t)])) is None
+
+
+def test_with_labels_a_moved_sample_is_weighed_by_its_own_labels_prior():
+    """Mixed-state samples: half labelled 0 about (0, 0), half labelled 1 about (30, 0); the
+    proposal sits on label 1's place.  A label-0 sample it moves there is one label 0's prior
+    cannot produce, and keeps next to no weight; taken over both labels, the prior would have
+    given it label 1's density."""
+    rng = np.random.default_rng(5)
+    n = 4000
+    labels = np.repeat([0, 1], n // 2)
+    t = np.where(labels[:, None] == 0, 0.0, [30.0, 0.0]) + 2.0 * rng.standard_normal((n, 2))
+    new = np.column_stack([t, np.zeros((n, 2))])
+
+    def moved_label0_mass(groups):
+        propose = F.flow_proposal(np.array([30.0, 0.0]), 2.0, 0.25, groups=groups)
+        _, out, log_c = propose(new - 1.0, new, np.random.default_rng(6))
+        w = np.exp(log_c - log_c.max())
+        w /= w.sum()
+        there = np.hypot(*(out[:, :2] - [30.0, 0.0]).T) < 6.0
+        return float(w[there & (labels == 0)].sum()), float(w[labels == 0].sum())
+
+    with_labels, label0 = moved_label0_mass(lambda: labels)
+    assert with_labels < 1e-3
+    assert abs(label0 - 0.5) < 0.03  # the labels keep the prior's shares
+    without, _ = moved_label0_mass(None)
+    assert without > 0.05

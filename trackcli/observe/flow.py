@@ -23,8 +23,11 @@ the adaptive mixture importance sampling of population Monte Carlo (Douc, Guilli
 weights), i.e. one EM step toward the mixture nearest the posterior.  Where the flow's place is
 where the likelihood puts the object and the prior's is not (a dash, a turn) the share grows; where
 the flow is unreliable (a small fast ball, a region whose flow is the background's) it shrinks,
-and fewer samples are spent on it.  The weights are right for any ``q``, so ``q`` may follow
-the past frames.
+and fewer samples are spent on it.  The proposal's spread is learned the same way (the EM update
+of its variance: the posterior's mean squared offset from its centre, weighted by the
+responsibilities), so that a flow that is off by some pixels, as it is on an object smaller than
+its patches or against the background's parallax, spreads its samples as far.  The weights are
+right for any ``q`` and spread, so both may follow the past frames.
 """
 
 from __future__ import annotations
@@ -115,8 +118,8 @@ class FlowProposal:
     """An importance-sampling step for CONDENSATION from the flow's prediction (module docstring).
 
     A share ``fraction`` of the predicted samples (chosen at random) has its translation redrawn
-    from ``g = N(centre, spread^2 I)`` (``centre`` (2,): the last estimate's translation moved
-    by the flow, in the units of ``X[:2]``); their other components are kept, and their previous
+    from ``g = N(centre, diag(spread^2))`` (``centre`` (2,): the last estimate's translation moved
+    by the flow, in the units of ``X[:2]``; ``spread`` px, one or per axis); their other components are kept, and their previous
     state stays their parent's, so that the move is also their velocity, which the AR(2) model
     carries on.  Every sample then carries the correction :func:`mixture_log_correction` with
     ``f`` from :func:`prior_log_density` of the predicted translations (``jump_share`` and
@@ -126,10 +129,12 @@ class FlowProposal:
     :func:`trackcli.trackers.condensation.step`; afterwards :attr:`responsibility` (n,) holds
     each sample's ``r g / ((1 - r) f + r g)`` with ``r`` the share ``reference`` (``fraction``
     unless given): the probability that a mixture with that share drew it from ``g`` (None
-    before a call or when no sample was drawn from ``g``).
+    before a call or when no sample was drawn from ``g``).  With ``groups`` (a call that returns
+    each predicted sample's label, as mixed-state dynamics give them, or None), the prior's
+    density is taken within each label: a sample the proposal moves keeps its label.
     """
 
-    def __init__(self, centre: np.ndarray, spread: float, fraction: float, *, jump_share: float = 0.0,
+    def __init__(self, centre: np.ndarray, spread: float | np.ndarray, fraction: float, *, jump_share: float = 0.0,
                  jump_rms: float = 0.0, reference: float | None = None,
                  groups: Callable[[], np.ndarray | None] | None = None) -> None:
         self.groups = groups
