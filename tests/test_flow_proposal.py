@@ -298,3 +298,18 @@ def test_with_labels_a_moved_sample_is_weighed_by_its_own_labels_prior():
     assert abs(label0 - 0.5) < 0.03  # the labels keep the prior's shares
     without, _ = moved_label0_mass(None)
     assert without > 0.05
+
+
+def test_the_spread_follows_how_far_off_the_proposals_samples_were_found():
+    share = F.AdaptiveShare(0.25, 0.02)
+    assert share.error is None
+    w = np.full(4, 0.25)
+    r = np.array([1.0, 1.0, 0.0, 0.0])  # only the first two are the proposal's
+    offsets = np.array([[3.0, 0.0], [-3.0, 4.0], [50.0, 50.0], [-50.0, 50.0]])
+    share.update_error(w, r, offsets)
+    assert np.allclose(share.error, [3.0, np.sqrt(8.0)])  # the first frame: as found
+    share.update_error(w, r, np.zeros((4, 2)))
+    assert np.allclose(share.error, [np.sqrt(4.5), 2.0])  # then halfway, in variance
+    share.update_error(w, None, offsets)
+    share.update_error(w, np.zeros(4), offsets)  # no posterior mass on the proposal: unchanged
+    assert np.allclose(share.error, [np.sqrt(4.5), 2.0])
