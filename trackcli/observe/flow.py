@@ -85,13 +85,18 @@ def prior_log_density(t: np.ndarray, samples: np.ndarray, jump_share: float = 0.
         pick = (rng or np.random.default_rng(0)).choice(n, size=KERNELS, replace=False)
         centres = s[pick]
     h2 = np.maximum(sd * len(centres) ** (-1.0 / 6.0), MIN_CORE) ** 2
-    tt = np.asarray(t, dtype=np.float64)
+    h = np.sqrt(h2)
+    tt = np.asarray(t, dtype=np.float64) / h
+    cc = centres / h
+    c2 = 0.5 * (cc * cc).sum(axis=1)
     core = np.empty(len(tt))
-    for a in range(0, len(tt), 256):  # (block, kernels) at a time
-        q = (tt[a:a + 256, None, :] - centres[None, :, :]) ** 2 / h2
-        e = -0.5 * q.sum(axis=2)
+    for a in range(0, len(tt), 1024):  # (block, kernels) at a time
+        tb = tt[a:a + 1024]
+        e = tb @ cc.T - c2  # -|t - c|^2 / 2 less -|t|^2 / 2, added below
         top = e.max(axis=1)
-        core[a:a + 256] = top + np.log(np.exp(e - top[:, None]).sum(axis=1))
+        np.subtract(e, top[:, None], out=e)
+        np.exp(e, out=e)
+        core[a:a + 1024] = top + np.log(e.sum(axis=1)) - 0.5 * (tb * tb).sum(axis=1)
     core += -math.log(len(centres)) - 0.5 * float(np.log(h2).sum()) - math.log(2 * math.pi)
     if jump_share <= 0 or jump_rms <= 0:
         return core
