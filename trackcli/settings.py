@@ -179,6 +179,8 @@ class CondensationSettings:
     init_speed: float = _f(0.0, "float", "initial spread of translational velocity, px/frame, for an object already moving on the first frame (init: template)", lo=0)
     histogram_bins: int = _f(64, "int", "bins of the horizontal-translation histogram", lo=2, hi=4096)
     display_particles: int = _f(10, "int", "particle contours drawn per frame in the recording", lo=0, hi=10000)
+    flow_fraction: float = _f(0.25, "float", "share of the samples drawn about where the dense optical flow (DIS) says the object moved: the last estimate moved by the median flow over its region, with importance weights that keep the set a fair sample of the motion prior (ICONDENSATION); for motion faster than the AR(2) prior follows; not while re-acquiring; the largest share: after each frame the share moves halfway toward the posterior weight the flow's samples earned, within [flow_least, flow_fraction]; 0: off", lo=0, hi=0.9)
+    flow_least: float = _f(0.02, "float", "smallest share of the samples the flow proposal keeps when its samples earn little posterior weight (an unreliable flow); flow_fraction or more: a fixed share", lo=0, hi=0.9)
     threads: int = _f(0, "int", "threads that score the samples (0 = every core from 300 samples up with the discriminant, 2000 with the numpy models, one below); the results do not depend on it", lo=0, hi=256)
 
 

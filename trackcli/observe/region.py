@@ -352,6 +352,8 @@ def contrast(image_bgr: np.ndarray, outline: np.ndarray, model: ColourModel) -> 
 
 #: the frames' scale for the optical flow (DIS at half resolution: 1.6 ms a frame of 854x480)
 FLOW_SCALE = 0.5
+#: the fewest pixels (at the flow's scale) of a region whose motion :meth:`FlowPrior.shift` measures
+SHIFT_LEAST = 9
 
 
 class FlowPrior:
@@ -388,6 +390,51 @@ class FlowPrior:
         p = np.clip(np.asarray(points, dtype=np.float64) * FLOW_SCALE, 0, [w - 1, h - 1]).astype(np.float32)
         d = cv2.remap(self._flow, p[:, :1], p[:, 1:], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[:, 0, :]
         return np.asarray(points, dtype=np.float64) + d.astype(np.float64) / FLOW_SCALE
+
+    def shift(self, outline: np.ndarray) -> np.ndarray | None:
+        """How the region inside the closed polygon ``outline`` (P, 2) of the last frame moved to
+        this one: the median flow over its pixels (2,), px; None before a flow exists or when
+        fewer than :data:`SHIFT_LEAST` of its pixels (at the flow's scale) are in the frame.
+        The median follows the part of the region that moves together, the object, when the
+        polygon also takes in some background."""
+        import cv2
+
+        if self._flow is None:
+            return None
+        p = np.asarray(outline, dtype=np.float64).reshape(-1, 2) * FLOW_SCALE
+        if len(p) < 3 or not np.all(np.isfinite(p)):
+            return None
+        h, w = self._flow.shape[:2]
+        lo = np.maximum(np.floor(p.min(axis=0)).astype(int), 0)
+        hi = np.minimum(np.ceil(p.max(axis=0)).astype(int) + 1, [w, h])
+        if np.any(hi - lo < 1):
+            return None
+        m = np.zeros((hi[1] - lo[1], hi[0] - lo[0]), np.uint8)
+        cv2.fillPoly(m, [np.round(p - lo).astype(np.int32)], 1)
+        inside = m.astype(bool)
+        if np.count_nonzero(inside) < SHIFT_LEAST:
+            return None
+        d = self._flow[lo[1]:hi[1], lo[0]:hi[0]][inside]
+        return np.median(d, axis=0).astype(np.float64) / FLOW_SCALE
+
+    def shift_spread(self, outline: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """:meth:`shift` and how much the flow over the region disagrees with it: the median
+        absolute deviation of the flow from its median per axis, as a standard deviation (2,),
+        px.  Large where the region holds more than one motion (an object and the background it
+        moves against, a ball that has just turned back), small for one rigid move."""
+        m = self.shift(outline)
+        if m is None:
+            return None
+        p = np.asarray(outline, dtype=np.float64).reshape(-1, 2) * FLOW_SCALE
+        h, w = self._flow.shape[:2]
+        lo = np.maximum(np.floor(p.min(axis=0)).astype(int), 0)
+        hi = np.minimum(np.ceil(p.max(axis=0)).astype(int) + 1, [w, h])
+        import cv2
+
+        mask = np.zeros((hi[1] - lo[1], hi[0] - lo[0]), np.uint8)
+        cv2.fillPoly(mask, [np.round(p - lo).astype(np.int32)], 1)
+        d = self._flow[lo[1]:hi[1], lo[0]:hi[0]][mask.astype(bool)].astype(np.float64) / FLOW_SCALE
+        return m, 1.4826 * np.median(np.abs(d - m), axis=0)
 
 
 def resample_closed(points: np.ndarray, n: int) -> np.ndarray:
@@ -478,11 +525,14 @@ class OutlineRefiner:
     measured with, which a drifting model cannot move: the evidence of :meth:`holds`.
     """
 
-    def __init__(self, settings, start=None) -> None:
+    def __init__(self, settings, start=None, flow: "FlowPrior | None" = None) -> None:
         self.settings = settings
         self.model: ColourModel | None = None
         self.reference: ColourModel | None = None
-        self.flow = FlowPrior() if settings.flow else None
+        # a flow another stage pushes every frame before this one runs (the tracker's, whose
+        # proposal uses it), so that the frames' flow is computed once; else its own
+        self.flow = (flow if flow is not None else FlowPrior()) if settings.flow else None
+        self.owns_flow = flow is None
         self.last: np.ndarray | None = None
         self.start = None if not start else [np.asarray(p, dtype=float) for p in start]
 
@@ -518,7 +568,7 @@ class OutlineRefiner:
 
         s = self.settings
         image = image_bgr if image_bgr.ndim == 3 else np.repeat(image_bgr[..., None], 3, axis=2)
-        if self.flow is not None:
+        if self.flow is not None and self.owns_flow:
             self.flow.push(image)
         est = np.asarray(estimate, dtype=float)
         if not np.all(np.isfinite(est)) or len(est) < 3:
@@ -571,10 +621,11 @@ class OutlineRefiner:
                 and (fit.agreement >= HOLD_AGREEMENT or fit.covers >= HOLD_COVER))
 
 
-def outline_refiner(settings, space, start=None) -> OutlineRefiner | None:
+def outline_refiner(settings, space, start=None, flow: FlowPrior | None = None) -> OutlineRefiner | None:
     """The run's :class:`OutlineRefiner` (``outline.refine``), or None: refinement off, no
     outline columns to draw (``output.outline_points`` 0), or an open curve.  ``start``: the
-    region the template was fitted to (:attr:`trackcli.shapes.template.Template.region`)."""
+    region the template was fitted to (:attr:`trackcli.shapes.template.Template.region`);
+    ``flow``: the tracker's :class:`FlowPrior`, pushed by the tracker before each step, to share."""
     if settings.outline.refine and settings.output.outline_points and space.basis.closed:
-        return OutlineRefiner(settings.outline, start=start)
+        return OutlineRefiner(settings.outline, start=start, flow=flow)
     return None

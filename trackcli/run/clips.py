@@ -577,8 +577,10 @@ def track_clip(
         the_tracker.label = name
 
         # the drawn outline, refined from each frame's estimate after the step; the region the
-        # template was fitted to starts it (its colours, its outline)
-        refiner = outline_refiner(settings, space, start=load_template(template).region if template else None)
+        # template was fitted to starts it (its colours, its outline); the frames' optical flow is the
+        # tracker's when it has one (computed once a frame, before the step)
+        refiner = outline_refiner(settings, space, start=load_template(template).region if template else None,
+                                  flow=getattr(the_tracker, "flow", None))
 
         def make(frames: Iterable[Any]) -> Iterator[Any]:
             return run_tracker(the_tracker, frames, refiner=refiner)

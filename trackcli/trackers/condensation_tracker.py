@@ -19,9 +19,11 @@ import numpy as np
 
 from trackcli.dynamics.mixed_dynamics import MixedDynamics, MixedPrediction
 from trackcli.errors import ConfigError
+from trackcli.observe import flow as flow_cue
 from trackcli.observe import measure, reacquire
 from trackcli.observe.discriminant import normals_with_features
 from trackcli.observe.observation import Observation
+from trackcli.observe.region import FlowPrior
 from trackcli.settings import CondensationSettings, MeasurementSettings, Settings
 from trackcli.shapes.outline import contour_summary, measurement_sampler
 from trackcli.shapes.shape_space import ShapeSpace
@@ -144,6 +146,8 @@ def _chain(first, second):
     """Two ``propose`` hooks applied in turn (either may be None); corrections add up."""
     if first is None:
         return second
+    if second is None:
+        return first
 
     def propose(prev: np.ndarray, new: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         p1, a, ca = first(prev, new, rng)
@@ -277,6 +281,16 @@ class CondensationTracker(Tracker):
         # the confidence's centre while recovering from a loss (never below the usual one)
         m = settings.measurement
         self.recovery_centre = max(m.presence_centre, m.reacquired_centre)
+        # the motion cue: the frames' optical flow (shared with the outline's refinement) and the
+        # last estimate it moves; X[:2] must be the translation
+        self.flow = (FlowPrior() if c.flow_fraction > 0 and space.base_kind in ("translation", "similarity", "affine")
+                     else None)
+        self.last_X: np.ndarray | None = None
+        self.last_contour: np.ndarray | None = None
+        # its share of the samples, learned from the posterior weight its samples earn, and
+        # this frame's draw (None: not used)
+        self.flow_share = flow_cue.AdaptiveShare(c.flow_fraction, c.flow_least)
+        self.flow_draw: flow_cue.FlowProposal | None = None
 
     def _start(self, frame: FrameData) -> None:
         c, space = self.settings.condensation, self.space
@@ -291,11 +305,12 @@ class CondensationTracker(Tracker):
         self.scale_search = self._scale_search()
 
     def _proposal(self, ev: Any, frame: FrameData):
-        """The motion prior's jumps, and once lost on ``reacquire.after`` of the last
-        ``2 after - 1`` frames (:class:`LossRecord`) the colour proposal."""
+        """The motion prior's jumps; then, once lost on ``reacquire.after`` of the last
+        ``2 after - 1`` frames (:class:`LossRecord`), the colour proposal, otherwise the flow's
+        (:meth:`_flow_proposal`)."""
         r = self.settings.reacquire
         if not (r.enabled and self.losses.reacquire):
-            return self.jumps
+            return _chain(self.jumps, self._flow_proposal())
         size = self.observation.presence.app.size
         window = self.last_held.window(frame.time, size, r.speed) if r.speed > 0 else None
         peaks, strengths = reacquire.colour_peaks(ev.cmap, size, window=window)
@@ -303,6 +318,27 @@ class CondensationTracker(Tracker):
             peaks, strengths, self.space.origin, size, (frame.image.shape[1], frame.image.shape[0]),
             fraction=r.fraction, scale=self.scale_search, window=window)
         return self.jumps if proposal is None else _chain(self.jumps, proposal)
+
+    def _flow_proposal(self):
+        """The flow proposal (:func:`trackcli.observe.flow.flow_proposal`, ``condensation.flow_fraction``)
+        about the last estimate moved by the median optical flow over its region, or None: off,
+        no flow yet, or the region out of the frame."""
+        if self.flow is None or self.last_contour is None:
+            return None
+        got = self.flow.shift_spread(self.last_contour)
+        if got is None or not np.all(np.isfinite(got[0])) or not np.all(np.isfinite(got[1])):
+            return None
+        d, disagree = got
+        size = self.observation.presence.app.size
+        j = self.settings.jumps
+        spread = np.maximum(max(flow_cue.MIN_SPREAD, flow_cue.FLOW_SPREAD * size), disagree)
+        if self.flow_share.error is not None:  # as far off as the flow's samples were found
+            spread = np.maximum(spread, np.minimum(self.flow_share.error, j.size * size))
+        self.flow_draw = flow_cue.flow_proposal(self.last_X[:2] + d, spread, self.flow_share.share,
+                                                jump_share=min(j.fraction + j.brake, 1.0), jump_rms=j.size * size,
+                                                reference=self.flow_share.largest,
+                                                groups=(lambda: self.labels.moved) if self.mixed is not None else None)
+        return self.flow_draw
 
     def _scale_search(self) -> reacquire.ScaleSearch | None:
         """The re-acquisition's scale search, or None: not asked for, a space without scale,
@@ -323,6 +359,9 @@ class CondensationTracker(Tracker):
         obs = self.observation
         if obs.presence is None:
             self._start(frame)
+        if self.flow is not None:
+            self.flow.push(frame.image)
+        self.flow_draw = None
         ev = obs.prepare(frame, self.centre)
         fimg = ev.fimg  # without letterbox bars
 
@@ -343,6 +382,10 @@ class CondensationTracker(Tracker):
         self.particles = particles
         self.k += 1
         w = particles.weights
+        if self.flow_draw is not None:
+            self.flow_share.update_error(w, self.flow_draw.responsibility,
+                                         particles.cur[:, :2] - self.flow_draw.centre)
+            self.flow_share.update(w, self.flow_draw.responsibility)
         X = cond.weighted_mean(particles)
         dev = particles.cur - X
         X_std = np.sqrt(np.maximum(w @ (dev * dev), 0.0))
@@ -366,6 +409,7 @@ class CondensationTracker(Tracker):
             self.last_held.push(frame.time, self.centre)
         if finite:
             self.centre = centroid
+            self.last_X, self.last_contour = X, contour
         # normals of the estimate with a feature within the search range (reported, not used)
         search = self.settings.observation.search
         n_found = normals_with_features(fimg, pts, nrm, h=search, threshold=m.threshold,
