@@ -380,6 +380,13 @@ class FlowPrior:
         self._flow = None if self._prev is None or self._prev.shape != grey.shape else self._dis.calc(self._prev, grey, None)
         self._prev = grey
 
+    def frozen(self) -> "FlowPrior":
+        """This frame's flow, kept as it is by later pushes: for a stage that runs a frame behind
+        the one that pushes (the refinement's thread, sharing the tracker's flow)."""
+        view = object.__new__(FlowPrior)
+        view._dis, view._prev, view._flow = None, None, self._flow
+        return view
+
     def move(self, points: np.ndarray) -> np.ndarray | None:
         """``points`` (P, 2) of the last frame carried to this one; None before a flow exists."""
         import cv2
@@ -561,9 +568,12 @@ class OutlineRefiner:
         return RegionFit(region, (0, 0), joined_outline(pieces), float(agree), pieces=tuple(pieces),
                          covers=inter / max(np.count_nonzero(inside), 1))
 
-    def __call__(self, image_bgr: np.ndarray, estimate: np.ndarray, confidence: float = math.nan) -> RegionFit | None:
+    def __call__(self, image_bgr: np.ndarray, estimate: np.ndarray, confidence: float = math.nan,
+                 flow: FlowPrior | None = None) -> RegionFit | None:
         """The refined outline of the frame ``image_bgr`` whose estimate is the closed polygon
-        ``estimate`` (P, 2), held with the tracker's ``confidence`` (NaN: unknown, no update)."""
+        ``estimate`` (P, 2), held with the tracker's ``confidence`` (NaN: unknown, no update);
+        ``flow``: the shared flow as it was at this frame (:meth:`FlowPrior.frozen`), when the
+        tracker may already have pushed the next one."""
         import cv2
 
         s = self.settings
@@ -591,7 +601,7 @@ class OutlineRefiner:
             self.reference = ColourModel(self.model.fg.copy(), self.model.bg.copy())
         others = ()
         if self.flow is not None and self.last is not None:
-            moved = [self.flow.move(p) for p in self.last]
+            moved = [(flow or self.flow).move(p) for p in self.last]
             if all(m is not None for m in moved):
                 others = ((moved, 1.0),)
         fit = refine(image, est, self.model, sigma=s.prior_width, others=others, work_size=WORK_SIZE)

@@ -296,7 +296,10 @@ def run_tracker(tracker: Tracker, frames: Iterable[Any], measurement: Measuremen
     try:
         for frame in frames:
             data = data_of(frame)
-            job = pool.submit(_refined, refiner, data.image, tracker.step(data))
+            r = tracker.step(data)
+            # a flow the tracker shares moves on with its next step: the refinement gets this frame's
+            flow = refiner.flow.frozen() if getattr(refiner, "flow", None) is not None and not refiner.owns_flow else None
+            job = pool.submit(_refined, refiner, data.image, r, flow)
             if pending is not None:
                 done, pending = pending, job
                 yield done.result()
@@ -311,11 +314,12 @@ def run_tracker(tracker: Tracker, frames: Iterable[Any], measurement: Measuremen
         pool.shutdown(wait=True)
 
 
-def _refined(refiner: Any, image: np.ndarray, r: FrameResult) -> FrameResult:
-    """``r`` with the outline ``refiner`` draws from its estimate on ``image`` (see :func:`run_tracker`)."""
+def _refined(refiner: Any, image: np.ndarray, r: FrameResult, flow: Any = None) -> FrameResult:
+    """``r`` with the outline ``refiner`` draws from its estimate on ``image`` (see :func:`run_tracker`);
+    ``flow``: the tracker's shared flow as it was at this frame, or None."""
     import dataclasses
 
-    fit = refiner(image, r.contour, r.confidence)
+    fit = refiner(image, r.contour, r.confidence) if flow is None else refiner(image, r.contour, r.confidence, flow=flow)
     if fit is not None and fit.outline is not None:
         r = dataclasses.replace(r, outline=fit.outline, region_agreement=fit.agreement,
                                 lost=r.lost and not refiner.holds(fit))
