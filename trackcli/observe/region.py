@@ -398,12 +398,10 @@ class FlowPrior:
         d = cv2.remap(self._flow, p[:, :1], p[:, 1:], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[:, 0, :]
         return np.asarray(points, dtype=np.float64) + d.astype(np.float64) / FLOW_SCALE
 
-    def shift(self, outline: np.ndarray) -> np.ndarray | None:
-        """How the region inside the closed polygon ``outline`` (P, 2) of the last frame moved to
-        this one: the median flow over its pixels (2,), px; None before a flow exists or when
-        fewer than :data:`SHIFT_LEAST` of its pixels (at the flow's scale) are in the frame.
-        The median follows the part of the region that moves together, the object, when the
-        polygon also takes in some background."""
+    def _inside(self, outline: np.ndarray) -> np.ndarray | None:
+        """The flow vectors (K, 2), at the flow's scale, of the pixels inside the closed polygon
+        ``outline`` (P, 2) of the last frame; None before a flow exists or when fewer than
+        :data:`SHIFT_LEAST` of them are in the frame."""
         import cv2
 
         if self._flow is None:
@@ -421,26 +419,27 @@ class FlowPrior:
         inside = m.astype(bool)
         if np.count_nonzero(inside) < SHIFT_LEAST:
             return None
-        d = self._flow[lo[1]:hi[1], lo[0]:hi[0]][inside]
-        return np.median(d, axis=0).astype(np.float64) / FLOW_SCALE
+        return self._flow[lo[1]:hi[1], lo[0]:hi[0]][inside]
+
+    def shift(self, outline: np.ndarray) -> np.ndarray | None:
+        """How the region inside the closed polygon ``outline`` (P, 2) of the last frame moved to
+        this one: the median flow over its pixels (2,), px; None before a flow exists or when
+        fewer than :data:`SHIFT_LEAST` of its pixels (at the flow's scale) are in the frame.
+        The median follows the part of the region that moves together, the object, when the
+        polygon also takes in some background."""
+        d = self._inside(outline)
+        return None if d is None else np.median(d, axis=0).astype(np.float64) / FLOW_SCALE
 
     def shift_spread(self, outline: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """:meth:`shift` and how much the flow over the region disagrees with it: the median
         absolute deviation of the flow from its median per axis, as a standard deviation (2,),
         px.  Large where the region holds more than one motion (an object and the background it
         moves against, a ball that has just turned back), small for one rigid move."""
-        m = self.shift(outline)
-        if m is None:
+        d = self._inside(outline)
+        if d is None:
             return None
-        p = np.asarray(outline, dtype=np.float64).reshape(-1, 2) * FLOW_SCALE
-        h, w = self._flow.shape[:2]
-        lo = np.maximum(np.floor(p.min(axis=0)).astype(int), 0)
-        hi = np.minimum(np.ceil(p.max(axis=0)).astype(int) + 1, [w, h])
-        import cv2
-
-        mask = np.zeros((hi[1] - lo[1], hi[0] - lo[0]), np.uint8)
-        cv2.fillPoly(mask, [np.round(p - lo).astype(np.int32)], 1)
-        d = self._flow[lo[1]:hi[1], lo[0]:hi[0]][mask.astype(bool)].astype(np.float64) / FLOW_SCALE
+        m = np.median(d, axis=0).astype(np.float64) / FLOW_SCALE
+        d = d.astype(np.float64) / FLOW_SCALE
         return m, 1.4826 * np.median(np.abs(d - m), axis=0)
 
 
