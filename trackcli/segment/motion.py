@@ -29,8 +29,9 @@ MOTION_FLOOR = 0.5
 #: (Otsu's split of the log residual) covers less than this share of it, or more than one minus
 #: it, has no clear moving object ...
 MOVING_LEAST = 0.05
-#: ... nor one whose moving part departs from the scene's motion by less than this (its median)
-MOVING_RESIDUAL = 3.0
+#: ... nor one whose moving part departs from the scene's motion by less than this (its median;
+#: in a still scene, at the floor, one pixel: DIS's noise on a flat region is most of that)
+MOVING_RESIDUAL = 2.0
 
 
 def _flow(a: np.ndarray, b: np.ndarray) -> np.ndarray:
