@@ -72,7 +72,7 @@ def test_the_oval_moves_unlike_the_panning_scene():
     inside[BOX[1]:BOX[1] + BOX[3], BOX[0]:BOX[0] + BOX[2]] = True
     panel = inside & ~oval()
     # the oval moves against the scene; the panel, painted on it, moves with it
-    assert np.median(residual[oval()]) > 5 * np.median(residual[panel])
+    assert np.median(residual[oval()]) > 3 * np.median(residual[panel])
     assert mask_iou(moves, oval()) > 0.7
     assert motion.agreement(oval().astype(np.uint8) * 255, moves, RECT) > 0.6
     assert motion.agreement(inside.astype(np.uint8) * 255, moves, RECT) == 0.0  # the whole box: nothing to tell
@@ -153,3 +153,26 @@ def test_draw_tries_only_the_masks_as_much_what_moves_as_the_choice(monkeypatch,
     mask, note = drawing.confirm_mask(seg, Clip(), Clip().read(0), lambda m: None, lambda label, n: no_progress())
     assert np.array_equal(mask, a) and note == ""
     assert seen == (tried if len(tried) > 1 else [])
+
+
+def test_draw_box_on_the_clip_outlines_the_oval_without_the_panel(tmp_path):
+    """As a user runs it: ``draw --box`` on the clip (a folder of lossless frames) gives the
+    oval's outline.  (With JPEG frames GrabCut takes the panel back in: its colour is the
+    oval's exactly, and the motion only seeds GrabCut's colour models; docs/drawing.md.)"""
+    from click.testing import CliRunner
+
+    from trackcli.cli import cli
+    from trackcli.shapes import draw
+    from trackcli.shapes.spline import dense_polygon
+    from trackcli.shapes.template import load_template
+
+    clip = tmp_path / "pan"
+    clip.mkdir()
+    for k, img in enumerate(frames(20)):
+        assert cv2.imwrite(str(clip / f"{k:04d}.png"), img)
+    out = tmp_path / "t.yaml"
+    result = CliRunner().invoke(cli, ["draw", str(clip), "--box", ",".join(map(str, BOX)), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    t = load_template(out)
+    drawn = draw.polygon_mask(dense_polygon(t.Q, t.basis(), 400), (W, H))
+    assert mask_iou(drawn > 0, oval()) > 0.85

@@ -4,8 +4,8 @@ One frame cannot tell an object from a region beside it of the same colours (a w
 dancer, the water under a flamingo); the frames that follow can, since the object moves and
 the region moves with the scene.  :func:`motion_residual` measures, at every pixel, how far the
 dense optical flow (DIS) from the drawn frame to each of the next few frames departs from the
-scene's own motion, a homography fitted by RANSAC to the flow outside the box (it takes in a
-still camera, a pan, a zoom); :func:`moving` splits the box at Otsu's threshold of that
+scene's own motion (the smallest departure over those frames), a homography fitted by RANSAC
+to the flow outside the box (it takes in a still camera, a pan, a zoom); :func:`moving` splits the box at Otsu's threshold of that
 residual.  The scene's homography also stands for a far background behind a moving camera;
 near objects outside the box that move otherwise only spoil the fit where they dominate it.
 """
@@ -16,12 +16,16 @@ from collections.abc import Sequence
 
 import numpy as np
 
-#: the frames after the drawn one whose flow is measured (the residual is the largest of them)
+#: the frames after the drawn one whose flow is measured (the residual is the smallest of them)
 MOTION_FRAMES = 3
 #: the scale of the frames for the flow (DIS at half resolution)
 MOTION_SCALE = 0.5
 #: the scene's motion is fitted outside the box grown by this share of its size on every side
 MOTION_MARGIN = 0.1
+#: the flow's smoothing, in pixels at its scale: so far on each side of the moving part's edge
+#: the agreement of a mask with what moves is not judged (half a patch: the medium preset's
+#: patches are 8 px on a level of half the resolution it is given, 16 px of it)
+MOTION_BAND = 8
 #: the residual is in units of the median residual outside that box, or of this many pixels of
 #: the frame when that is less (the flow's noise in a still scene)
 MOTION_FLOOR = 0.5
@@ -51,8 +55,9 @@ def _grey(image_bgr: np.ndarray) -> np.ndarray:
 def motion_residual(image_bgr: np.ndarray, later: Sequence[np.ndarray],
                     box: tuple[float, float, float, float]) -> np.ndarray | None:
     """How far each pixel's flow from ``image_bgr`` to each frame of ``later`` departs from the
-    scene's homography (fitted outside ``box`` grown by :data:`MOTION_MARGIN`), the largest
-    over ``later``, in units of the median departure outside that box (at least
+    scene's homography (fitted outside ``box`` grown by :data:`MOTION_MARGIN`), the smallest
+    over ``later`` (the object departs on every one of them; the background it covers or
+    uncovers, whose flow takes the object's, only on the later ones), in units of the median departure outside that box (at least
     :data:`MOTION_FLOOR` pixels); float32 of the frame's size.  None without later frames, or when too little of the frame lies outside the box to
     fit the scene's motion."""
     import cv2
@@ -72,7 +77,7 @@ def motion_residual(image_bgr: np.ndarray, later: Sequence[np.ndarray],
     step = max(1, int(outside.sum() // 20000))  # enough points for RANSAC, few enough to be quick
     src = np.stack([xx[outside], yy[outside]], 1)[::step]
     grid = np.dstack([xx, yy])
-    worst = np.zeros((h, w), np.float32)
+    least = np.full((h, w), np.inf, np.float32)
     for frame in later:
         if frame.shape[:2] != image_bgr.shape[:2]:
             return None
@@ -81,9 +86,9 @@ def motion_residual(image_bgr: np.ndarray, later: Sequence[np.ndarray],
         if H is None:
             return None
         moved = cv2.perspectiveTransform(grid.reshape(-1, 1, 2), H).reshape(h, w, 2)
-        worst = np.maximum(worst, np.linalg.norm(flow - (moved - grid), axis=2))
-    worst /= max(float(np.median(worst[outside])), MOTION_FLOOR * MOTION_SCALE)
-    return cv2.resize(worst, (w_img, h_img), interpolation=cv2.INTER_LINEAR)
+        least = np.minimum(least, np.linalg.norm(flow - (moved - grid), axis=2))
+    least /= max(float(np.median(least[outside])), MOTION_FLOOR * MOTION_SCALE)
+    return cv2.resize(least, (w_img, h_img), interpolation=cv2.INTER_LINEAR)
 
 
 def moving(residual: np.ndarray, rect: tuple[int, int, int, int]) -> np.ndarray | None:
@@ -113,9 +118,18 @@ def moving(residual: np.ndarray, rect: tuple[int, int, int, int]) -> np.ndarray 
 
 def agreement(mask: np.ndarray, moves: np.ndarray, rect: tuple[int, int, int, int]) -> float:
     """How well ``mask`` is what moves within ``rect``: the share of its pixels in the box that
-    move (``moves``, :func:`moving`) less the share of the box's other pixels that do, in [-1, 1]."""
+    move (``moves``, :func:`moving`) less the share of the box's other pixels that do, in [-1, 1].
+    Pixels within :data:`MOTION_BAND` of the moving part's edge are left out: the flow is
+    smoothed over its patches, and there what moves spills onto what does not."""
+    import cv2
+
     x0, y0, w, h = rect
     m, mv = mask[y0:y0 + h, x0:x0 + w] > 0, moves[y0:y0 + h, x0:x0 + w]
-    if not m.any() or m.all():
+    r = int(round(MOTION_BAND / MOTION_SCALE))
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    u8 = mv.astype(np.uint8)
+    sure = (cv2.dilate(u8, kernel) == 0) | (cv2.erode(u8, kernel) > 0)
+    m_in, m_out = m & sure, ~m & sure
+    if not m_in.any() or not m_out.any():
         return 0.0
-    return float(mv[m].mean() - mv[~m].mean())
+    return float(mv[m_in].mean() - mv[m_out].mean())
