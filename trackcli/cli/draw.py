@@ -16,8 +16,9 @@ from trackcli.cli.options import fps_option, output_option
 @click.option("--ellipse", help="Ellipse 'cx,cy,a,b[,angle]': centre, semi-axes (px), angle (degrees).")
 @click.option("--box", help="Box 'x,y,w,h' around the object: segmented automatically (GrabCut; on a grey "
               "frame by grey level and local texture; the inscribed ellipse when no object is found). On a clip, "
-              "GrabCut's other masks are also tracked over the next 14 frames, and one that is clearly better held "
-              "replaces the frame's choice (-v prints their figures).")
+              "what moves unlike the scene over the next 3 frames (optical flow) seeds one more mask and chooses "
+              "among them when it is clear, and GrabCut's other masks are also tracked over the next 14 frames: "
+              "one that is clearly better held replaces the frame's choice (-v prints their figures).")
 @click.option("--mask", type=click.Path(), help="Binary mask image (non-zero = object), same size as the frame.")
 @click.option("--parts", "part_specs", multiple=True, metavar="NAME:x,y,w,h",
               help="A part of a structure template for --tracker coupled (repeatable, at least two), e.g. "

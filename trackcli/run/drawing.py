@@ -21,6 +21,7 @@ import numpy as np
 
 from trackcli.segment.grabcut import LEAK_EXTENT
 from trackcli.segment.masks import mask_outline
+from trackcli.segment.motion import MOTION_FRAMES
 from trackcli.shapes.draw import canonical_start, fit_error, polygon_mask, resample_polygon
 
 log = logging.getLogger(__name__)
@@ -343,9 +344,10 @@ def draw_template(clip: str, *, output: str, frame_index: int = 0, points: str |
             source = f"ellipse {ellipse}"
         elif box:
             b = draw.parse_numbers(box, 4, "--box")
+            later = next_images(video, frame.index, MOTION_FRAMES)
             # GrabCut takes seconds on a large frame (longer on a grey one, whose texture is segmented too)
-            with bar("segmenting the box", grabcut.segment_runs(frame.image)) as seg_bar:
-                seg = grabcut.segment_candidates(frame.image, tuple(b), progress=seg_bar.update)
+            with bar("segmenting the box", grabcut.segment_runs(frame.image, bool(later))) as seg_bar:
+                seg = grabcut.segment_candidates(frame.image, tuple(b), progress=seg_bar.update, later=later)
             mask_image, note = confirm_mask(seg, video, frame, lambda m: fit_outline(
                 masks.mask_outline(m), n_ctrl, degree, size, _quiet=True), bar)
             outline = masks.mask_outline(mask_image)
@@ -380,6 +382,19 @@ def draw_template(clip: str, *, output: str, frame_index: int = 0, points: str |
     return Drawn(out, png, rrd, template, source)
 
 
+def next_images(video: Any, index: int, n: int) -> list[Any]:
+    """The images of up to ``n`` frames of ``video`` after frame ``index`` (fewer at its end)."""
+    from trackcli.errors import VideoError
+
+    out = []
+    for i in range(index + 1, min(index + 1 + n, video.n_total)):
+        try:
+            out.append(video.read(i).image)
+        except VideoError:  # a file's frame count is an estimate: its true end came first
+            break
+    return out
+
+
 def confirm_mask(seg: Any, video: Any, frame: Any, fit: Callable[[Any], Any],
                  progress: Callable[[str, int], ContextManager[Any]]) -> tuple[Any, str]:
     """``draw --box``: the mask of ``seg`` that the frames of ``video`` after the drawn one
@@ -389,6 +404,12 @@ def confirm_mask(seg: Any, video: Any, frame: Any, fit: Callable[[Any], Any],
     from trackcli.run import confirm
 
     order = confirm.to_try(seg.masks, seg.chosen)
+    if seg.agreement is not None:
+        # the next frames' motion has spoken first: only masks as much what moves as the choice
+        # (within MOTION_GAIN) are tried; a still region is easily "held"
+        from trackcli.segment.grabcut import MOTION_GAIN
+
+        order = [i for i in order if seg.agreement[i] >= seg.agreement[seg.chosen] - MOTION_GAIN]
     if len(order) < 2:  # one mask (or the inscribed ellipse): nothing to choose
         return seg.mask, ""
     frames = [frame]

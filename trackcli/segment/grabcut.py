@@ -14,7 +14,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -72,16 +72,20 @@ PRUNE_WINDOW = 1.0
 #: object's colour is still mostly the surroundings' colours)
 REGION_CORE = 0.65
 REGION_WINDOW = 0.08
+#: with the next frames' motion (:mod:`trackcli.segment.motion`), a candidate replaces the
+#: colours' choice when its agreement with what moves is higher by this much
+MOTION_GAIN = 0.05
 
 
-def segment_runs(image_bgr: np.ndarray) -> int:
+def segment_runs(image_bgr: np.ndarray, motion: bool = False) -> int:
     """The GrabCut runs :func:`segment_box` makes at most on this frame (its ``progress`` steps):
     the whole frame and the box's surroundings, each possibly again without a leak (4); on a
     colour frame each of these masks possibly again pruned by colour and by regions (12), on a
-    grey frame all of it again on its texture image (8)."""
+    grey frame all of it again on its texture image (8); with ``motion`` (later frames given to
+    :func:`segment_candidates`) one run more, seeded by what moves."""
     from trackcli.observe.discriminant import is_grey
 
-    return 8 if is_grey(image_bgr) else 12
+    return (8 if is_grey(image_bgr) else 12) + int(motion)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -92,11 +96,14 @@ class Segmentation:
     choice of :func:`segment_box` is made (those spanning the box, see there); ``chosen`` is
     the index of that choice and ``method`` how it was found (``"GrabCut"``, or
     :data:`FALLBACK_METHOD`, whose only mask is the ellipse inscribed in the box).
+    ``agreement`` is each mask's :func:`trackcli.segment.motion.agreement` with what moves in
+    the box, when the later frames showed a moving object (else None).
     """
 
     masks: tuple[np.ndarray, ...]
     chosen: int
     method: str
+    agreement: tuple[float, ...] | None = None
 
     @property
     def mask(self) -> np.ndarray:
@@ -165,11 +172,22 @@ def segment_box(image_bgr: np.ndarray, box: tuple[float, float, float, float], *
 
 
 def segment_candidates(image_bgr: np.ndarray, box: tuple[float, float, float, float], *, iterations: int = 5,
-                       progress: Callable[[int], None] | None = None) -> Segmentation:
+                       progress: Callable[[int], None] | None = None,
+                       later: Sequence[np.ndarray] = ()) -> Segmentation:
     """The candidate masks of :func:`segment_box` for ``box`` and its choice among them (see
     there), for a caller that can judge them further (``draw --box`` tracks them over the
-    frames that follow, :mod:`trackcli.run.confirm`)."""
+    frames that follow, :mod:`trackcli.run.confirm`).
+
+    With ``later``, the next few frames of the clip (:data:`trackcli.segment.motion.MOTION_FRAMES`),
+    what moves unlike the scene is a cue too (:mod:`trackcli.segment.motion`): GrabCut runs once
+    more with the box's moving pixels as probable object and its still ones as probable
+    background, and a candidate that is clearly more what moves than the colours' choice
+    (:func:`trackcli.segment.motion.agreement` higher by :data:`MOTION_GAIN`) replaces it."""
     import cv2
+
+    from trackcli.segment.motion import motion_residual
+
+    residual = motion_residual(image_bgr, later, box) if len(later) else None
 
     h_img, w_img = image_bgr.shape[:2]
     x, y, w, h = box
@@ -200,15 +218,18 @@ def segment_candidates(image_bgr: np.ndarray, box: tuple[float, float, float, fl
                         "inside it; segmenting %g,%g,%g,%g", x, y, w, h, w_img, h_img, *seg)
         p = EDGE_PAD + int(math.ceil(max(0.0, -seg[0], -seg[1], seg[0] + seg[2] - w_img, seg[1] + seg[3] - h_img)))
         big = cv2.copyMakeBorder(image_bgr, p, p, p, p, cv2.BORDER_REPLICATE)
-        masks, chosen, method = _segment(big, (seg[0] + p, seg[1] + p, seg[2], seg[3]),
-                                         (x0 + p, y0 + p, x1 - x0, y1 - y0), iterations, progress)
+        if residual is not None:
+            residual = cv2.copyMakeBorder(residual, p, p, p, p, cv2.BORDER_REPLICATE)
+        masks, chosen, method, agreement = _segment(big, (seg[0] + p, seg[1] + p, seg[2], seg[3]),
+                                         (x0 + p, y0 + p, x1 - x0, y1 - y0), iterations, progress, residual)
         masks = [np.ascontiguousarray(m[p:-p, p:-p]) for m in masks]
     else:
-        masks, chosen, method = _segment(image_bgr, box, (x0, y0, x1 - x0, y1 - y0), iterations, progress)
+        masks, chosen, method, agreement = _segment(image_bgr, box, (x0, y0, x1 - x0, y1 - y0), iterations, progress,
+                                         residual)
     if method == FALLBACK_METHOD:
         log.warning("--box %g,%g,%g,%g: automatic segmentation found no clear object; using the ellipse "
                     "inscribed in the box", x, y, w, h)
-    return Segmentation(tuple(masks), chosen, method)
+    return Segmentation(tuple(masks), chosen, method, agreement)
 
 
 #: the method :func:`segment_box` names when GrabCut found no object
@@ -216,10 +237,13 @@ FALLBACK_METHOD = "inscribed ellipse"
 
 
 def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect: tuple[int, int, int, int],
-             iterations: int, progress: Callable[[int], None] | None = None) -> tuple[list[np.ndarray], int, str]:
+             iterations: int, progress: Callable[[int], None] | None = None,
+             residual: np.ndarray | None = None) -> tuple[list[np.ndarray], int, str, tuple[float, ...] | None]:
     """:func:`segment_candidates` of a checked box, ``rect`` its whole-pixel part inside the
-    frame: ``(masks, chosen, method)``."""
+    frame, ``residual`` the motion cue's (or None): ``(masks, chosen, method, agreement)``."""
     import cv2
+
+    from trackcli.segment import motion
 
     from trackcli.observe.discriminant import is_grey
 
@@ -249,6 +273,14 @@ def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect
                 local = np.zeros((h_img, w_img), np.uint8)
                 local[cy0:cy1, cx0:cx1] = sub
                 candidates.append(local)
+    moves = motion.moving(residual, rect) if residual is not None else None
+    if moves is not None:
+        # GrabCut's colour models learned from what moves in the box and what stays with the scene
+        labels = np.full((h_img, w_img), cv2.GC_BGD, np.uint8)
+        labels[y0:y1, x0:x1] = cv2.GC_PR_BGD
+        labels[moves] = cv2.GC_PR_FGD
+        candidates.append(_clean_mask(_run_grabcut(image_bgr, labels, None, iterations, cv2.GC_INIT_WITH_MASK), rect))
+        tick()
     candidates = [c for c in candidates if c is not None]
     if not candidates:
         # GrabCut finds nothing convincing (small or low-contrast objects): the ellipse
@@ -256,7 +288,7 @@ def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect
         fallback = np.zeros((h_img, w_img), np.uint8)
         box_rr = (((x0 + x1) / 2.0, (y0 + y1) / 2.0), (float(x1 - x0), float(y1 - y0)), 0.0)
         cv2.ellipse(fallback, box_rr, 255, -1)
-        return [fallback], 0, FALLBACK_METHOD
+        return [fallback], 0, FALLBACK_METHOD, None
     lab = cv2.cvtColor(cv2.GaussianBlur(image_bgr, (5, 5), 0), cv2.COLOR_BGR2Lab)
     unleaked = []
     for c in list(candidates):
@@ -276,6 +308,7 @@ def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect
     # (a bust's head, whose colours are common around it), so such masks are chosen only when
     # every candidate is one
     spans = [min(r[2] / rect[2], r[3] / rect[3]) for r in (cv2.boundingRect(c) for c in candidates)]
+    every = list(candidates)
     if any(sp >= BOX_SPAN for sp in spans):
         candidates, spans = map(list, zip(*[(c, sp) for c, sp in zip(candidates, spans) if sp >= BOX_SPAN]))
     # the first (the whole-frame mask, the older default) stays unless another one is clearly better
@@ -285,7 +318,19 @@ def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect
     best = int(np.argmax(score))
     # SEPARATION_MARGIN of 1 - BC about the whole-frame mask's BC, on the distance -ln BC
     margin = SEPARATION_MARGIN / max(1.0 - separation[0], 1e-6)
-    return candidates, (best if score[best] > score[0] + margin else 0), "GrabCut"
+    chosen = best if score[best] > score[0] + margin else 0
+    if moves is None:
+        return candidates, chosen, "GrabCut", None
+    # a mask that is clearly more what moves unlike the scene than the colours' choice wins, even
+    # one the span rule left out: the motion tells a lost part (a flamingo's still legs) from
+    # background taken in
+    agree = [motion.agreement(c, moves, rect) for c in every]
+    mover = int(np.argmax(agree))
+    if agree[mover] > motion.agreement(candidates[chosen], moves, rect) + MOTION_GAIN:
+        if not any(c is every[mover] for c in candidates):
+            candidates.append(every[mover])
+        chosen = next(i for i, c in enumerate(candidates) if c is every[mover])
+    return candidates, chosen, "GrabCut", tuple(motion.agreement(c, moves, rect) for c in candidates)
 
 
 def _choice_score(separation: float, span: float) -> float:
