@@ -144,13 +144,9 @@ def test_draw_tries_only_the_masks_as_much_what_moves_as_the_choice(monkeypatch,
 
     monkeypatch.setattr(confirm, "confirm", spy)
 
-    class Clip:
-        n_total, fps = 20, 25.0
-
-        def read(self, i):
-            return Frame(i, i / 25.0, np.zeros((H, W, 3), np.uint8))
-
-    mask, note = drawing.confirm_mask(seg, Clip(), Clip().read(0), lambda m: None, lambda label, n: no_progress())
+    after = [Frame(i, i / 25.0, np.zeros((H, W, 3), np.uint8)) for i in range(1, 20)]
+    mask, note = drawing.confirm_mask(seg, Frame(0, 0.0, np.zeros((H, W, 3), np.uint8)), after, 25.0,
+                                      lambda m: None, lambda label, n: no_progress())
     assert np.array_equal(mask, a) and note == ""
     assert seen == (tried if len(tried) > 1 else [])
 

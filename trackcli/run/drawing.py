@@ -317,6 +317,7 @@ def draw_template(clip: str, *, output: str, frame_index: int = 0, points: str |
 
     from trackcli.io.outputs import atomic_paths, check_output_folders, output_dir, refuse_overwriting_inputs
     from trackcli.io.video import open_video
+    from trackcli.run import confirm
     from trackcli.run.clips import no_progress
     from trackcli.segment import grabcut, masks
     from trackcli.shapes import draw, structure
@@ -344,11 +345,13 @@ def draw_template(clip: str, *, output: str, frame_index: int = 0, points: str |
             source = f"ellipse {ellipse}"
         elif box:
             b = draw.parse_numbers(box, 4, "--box")
-            later = next_images(video, frame.index, MOTION_FRAMES)
+            # read once: the first few show what moves, all of them try the masks
+            after = next_frames(video, frame.index, confirm.CONFIRM_FRAMES - 1)
+            later = [f.image for f in after[:MOTION_FRAMES]]
             # GrabCut takes seconds on a large frame (longer on a grey one, whose texture is segmented too)
             with bar("segmenting the box", grabcut.segment_runs(frame.image, bool(later))) as seg_bar:
                 seg = grabcut.segment_candidates(frame.image, tuple(b), progress=seg_bar.update, later=later)
-            mask_image, note = confirm_mask(seg, video, frame, lambda m: fit_outline(
+            mask_image, note = confirm_mask(seg, frame, after, video.fps, lambda m: fit_outline(
                 masks.mask_outline(m), n_ctrl, degree, size, _quiet=True), bar)
             outline = masks.mask_outline(mask_image)
             source = f"box {box} ({seg.method}{note})"
@@ -382,25 +385,24 @@ def draw_template(clip: str, *, output: str, frame_index: int = 0, points: str |
     return Drawn(out, png, rrd, template, source)
 
 
-def next_images(video: Any, index: int, n: int) -> list[Any]:
-    """The images of up to ``n`` frames of ``video`` after frame ``index`` (fewer at its end)."""
+def next_frames(video: Any, index: int, n: int) -> list[Any]:
+    """Up to ``n`` frames of ``video`` after frame ``index`` (fewer at its end)."""
     from trackcli.errors import VideoError
 
     out = []
     for i in range(index + 1, min(index + 1 + n, video.n_total)):
         try:
-            out.append(video.read(i).image)
+            out.append(video.read(i))
         except VideoError:  # a file's frame count is an estimate: its true end came first
             break
     return out
 
 
-def confirm_mask(seg: Any, video: Any, frame: Any, fit: Callable[[Any], Any],
+def confirm_mask(seg: Any, frame: Any, after: Sequence[Any], fps: float, fit: Callable[[Any], Any],
                  progress: Callable[[str, int], ContextManager[Any]]) -> tuple[Any, str]:
-    """``draw --box``: the mask of ``seg`` that the frames of ``video`` after the drawn one
-    (``frame``) hold best (:func:`trackcli.run.confirm.confirm`), and what to add to the
-    template's source about it.  ``fit(mask)`` makes a template as ``draw`` does."""
-    from trackcli.errors import VideoError
+    """``draw --box``: the mask of ``seg`` that the frames ``after`` the drawn one (``frame``,
+    of a clip at ``fps``) hold best (:func:`trackcli.run.confirm.confirm`), and what to add to
+    the template's source about it.  ``fit(mask)`` makes a template as ``draw`` does."""
     from trackcli.run import confirm
 
     order = confirm.to_try(seg.masks, seg.chosen)
@@ -412,16 +414,11 @@ def confirm_mask(seg: Any, video: Any, frame: Any, fit: Callable[[Any], Any],
         order = [i for i in order if seg.agreement[i] >= seg.agreement[seg.chosen] - MOTION_GAIN]
     if len(order) < 2:  # one mask (or the inscribed ellipse): nothing to choose
         return seg.mask, ""
-    frames = [frame]
-    for i in range(frame.index + 1, min(frame.index + confirm.CONFIRM_FRAMES, video.n_total)):
-        try:
-            frames.append(video.read(i))
-        except VideoError:  # a file's frame count is an estimate: its true end came first
-            break
+    frames = [frame, *after]
     if len(frames) - 1 < confirm.CONFIRM_LEAST:
         return seg.mask, ""
     with progress(f"trying {len(order)} masks on the next frames", len(order)) as bar:
-        best, trials = confirm.confirm(seg.masks, order, fit, frames, video.fps, progress=bar.update)
+        best, trials = confirm.confirm(seg.masks, order, fit, frames, fps, progress=bar.update)
     for t in trials:
         log.info("mask %d of %d%s: over frames %d-%d, confidence %.3f, score %.1f (%.2f of the first frame's)",
                  t.index + 1, len(seg.masks), " (the frame's choice)" if t.index == seg.chosen else "",

@@ -325,12 +325,13 @@ def _segment(image_bgr: np.ndarray, box: tuple[float, float, float, float], rect
     # one the span rule left out: the motion tells a lost part (a flamingo's still legs) from
     # background taken in
     agree = [motion.agreement(c, moves, rect) for c in every]
+    of = {id(c): a for c, a in zip(every, agree)}  # every candidate kept is one of `every`
     mover = int(np.argmax(agree))
-    if agree[mover] > motion.agreement(candidates[chosen], moves, rect) + MOTION_GAIN:
+    if agree[mover] > of[id(candidates[chosen])] + MOTION_GAIN:
         if not any(c is every[mover] for c in candidates):
             candidates.append(every[mover])
         chosen = next(i for i, c in enumerate(candidates) if c is every[mover])
-    return candidates, chosen, "GrabCut", tuple(motion.agreement(c, moves, rect) for c in candidates)
+    return candidates, chosen, "GrabCut", tuple(of[id(c)] for c in candidates)
 
 
 def _choice_score(separation: float, span: float) -> float:
