@@ -394,3 +394,14 @@ def test_a_region_that_holds_the_whole_object_vouches_for_an_estimate_shrunk_ont
     ref(img, R.mask_polygons(m)[0], 0.9)  # the first frame: the colours, the region
     wheel = ref(img, np.column_stack([120 + 12 * np.cos(t), 68 + 12 * np.sin(t)]), 0.2)
     assert wheel.agreement < R.HOLD_AGREEMENT and wheel.covers > 0.9 and ref.holds(wheel)
+
+
+def test_edge_strength_is_higher_along_the_objects_boundary_than_across_flat_colour():
+    rng = np.random.default_rng(2)
+    m = np.zeros(SIZE, np.uint8)
+    cv2.rectangle(m, (40, 30), (119, 89), 1, -1)
+    img = frame(m.astype(bool), rng)
+    on = np.array([[40, 30], [119, 30], [119, 89], [40, 89]], float)
+    off = np.array([[25, 15], [134, 15], [134, 104], [25, 104]], float)  # 15 px out, flat background
+    s_on, s_off, s_none = R.edge_strength(img, [on, off, np.full((3, 2), np.nan)])
+    assert s_on > 5 * s_off and np.isnan(s_none)

@@ -350,6 +350,41 @@ def contrast(image_bgr: np.ndarray, outline: np.ndarray, model: ColourModel) -> 
     return float(model.log_ratio(roi, inside).mean() - model.log_ratio(roi, band).mean())
 
 
+def edge_strength(image_bgr: np.ndarray, outlines: list[np.ndarray], step: float = 2.0) -> list[float]:
+    """How strong the image's edges are along each closed outline: the grey level's gradient
+    magnitude (Sobel), the strongest within 2 px of the outline, averaged over points every
+    ``step`` px along it (NaN for an outline of fewer than 3 finite points)."""
+    import cv2
+
+    h, w = image_bgr.shape[:2]
+    ps = [np.asarray(p, dtype=float).reshape(-1, 2) for p in outlines]
+    good = [len(p) >= 3 and bool(np.all(np.isfinite(p))) for p in ps]
+    if not any(good):
+        return [math.nan] * len(ps)
+    allp = np.vstack([p for p, g in zip(ps, good) if g])
+    x0, y0 = (int(max(0, math.floor(v) - 4)) for v in allp.min(axis=0))
+    x1, y1 = int(min(w, math.ceil(allp[:, 0].max()) + 5)), int(min(h, math.ceil(allp[:, 1].max()) + 5))
+    if x1 - x0 < 3 or y1 - y0 < 3:
+        return [math.nan] * len(ps)
+    roi = image_bgr[y0:y1, x0:x1]
+    grey = (roi if roi.ndim == 2 else cv2.cvtColor(roi, cv2.COLOR_BGR2GRAY)).astype(np.float32)
+    mag = cv2.magnitude(cv2.Sobel(grey, cv2.CV_32F, 1, 0), cv2.Sobel(grey, cv2.CV_32F, 0, 1))
+    mag = cv2.dilate(mag, np.ones((5, 5), np.uint8))
+    out = []
+    for p, g in zip(ps, good):
+        if not g:
+            out.append(math.nan)
+            continue
+        q = np.vstack([p, p[:1]])
+        t = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(q, axis=0).T))])
+        u = np.arange(0.0, max(t[-1], 1e-9), step)
+        pts = np.column_stack([np.interp(u, t, q[:, 0]) - x0, np.interp(u, t, q[:, 1]) - y0])
+        pts = np.clip(pts, 0, [x1 - x0 - 1, y1 - y0 - 1]).astype(np.float32)
+        v = cv2.remap(mag, pts[:, :1], pts[:, 1:], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        out.append(float(np.mean(v)))
+    return out
+
+
 #: the frames' scale for the optical flow (DIS at half resolution: 1.6 ms a frame of 854x480)
 FLOW_SCALE = 0.5
 #: the fewest pixels (at the flow's scale) of a region whose motion :meth:`FlowPrior.shift` measures
@@ -508,6 +543,12 @@ HOLD_AGREEMENT = 0.2
 #: ... or the least share of the estimate's fill inside the region (an estimate shrunk onto a
 #: part of the object the region still covers whole)
 HOLD_COVER = 0.5
+#: on a frame held with confidence (the tracker's at least :data:`UPDATE_CONFIDENCE`), the
+#: tracker's curve is the outline when the image's edges along it are at least this many times as
+#: strong as along the region's boundary (:func:`edge_strength`): where colour leaks into
+#: look-alike surroundings (a hull's reflection, a road of a car's grey) the region's boundary
+#: runs through flat colour, the curve held by the tracker's edges does not
+EDGE_PREFERENCE = 1.2
 #: objects larger than this (px, the square root of the area of their priors' box) are refined
 #: on the frame shrunk to it: the time of a frame no longer grows with the object's size
 WORK_SIZE = 160.0
@@ -615,7 +656,13 @@ class OutlineRefiner:
             if roi.shape[:2] != (h, w):
                 roi = cv2.resize(roi, (w, h), interpolation=cv2.INTER_AREA)
             self.model.blend(ColourModel.learn(roi, fit.mask), s.colour_rate)
-        return dataclasses.replace(fit, contrast=contrast(image, fit.outline, self.reference))
+        # the lost verdict's evidence is the region's; the outline drawn may be the curve's
+        fit = dataclasses.replace(fit, contrast=contrast(image, fit.outline, self.reference))
+        if confidence >= UPDATE_CONFIDENCE:
+            on_curve, on_region = edge_strength(image, [est, fit.outline])
+            if on_curve > EDGE_PREFERENCE * on_region:
+                fit = dataclasses.replace(fit, outline=est)
+        return fit
 
     def holds(self, fit: RegionFit | None) -> bool:
         """Whether a frame's refined region is evidence enough that the object is held whatever
