@@ -11,7 +11,9 @@ synthetic clips, whose truth has them), precision at 10 px, success AUC (mean ov
 thresholds 0, 0.05, ..., 1 of the fraction of frames with IoU above the threshold) and the
 frames the tracker itself reported lost.  The truthfulness of that verdict is shown as two
 counts: frames flagged lost among frames whose centre error is > 20 px ("flag|bad") and among
-frames whose error is < 5 px ("flag|good"; should be near 0).
+frames whose error is < 5 px ("flag|good"; should be near 0); under the means, the same in the
+object's size, as ``bench/davis.py`` counts them: flagged among frames more than twice the size
+(the square root of the true box's area) off, and among frames within a tenth of it.
 
 The dev set:
 
@@ -226,11 +228,19 @@ def score(csv: Path, clip: Clip) -> dict:
     lost_flag = _lost_flags(csv, frames.frame)
     bad = err > 20
     good = err < 5
+    # the object's size (square root of the true box's area) per scored frame: "off" is more than
+    # twice it from the truth, "held" within a tenth of it (DAVIS's flag|off and flag|held)
+    at = {int(f): k for k, f in enumerate(truth.frame)}
+    box = truth.box[[at[int(f)] for f in frames.frame]]
+    size = np.sqrt(np.maximum(box[:, 2] * box[:, 3], 1.0))
+    off, held = err > 2 * size, err < 0.1 * size
     return {
         "p20": s20.precision, "p10": s10.precision, "auc": s20.success_auc,
         "err_mean": s20.centre_error_mean, "frames": int(frames.frame.size),
         "lost": int(lost_flag.sum()), "bad": int(bad.sum()), "good": int(good.sum()),
         "lost_bad": int((lost_flag & bad).sum()), "lost_good": int((lost_flag & good).sum()),
+        "off": int(off.sum()), "held": int(held.sum()),
+        "lost_off": int((lost_flag & off).sum()), "lost_held": int((lost_flag & held).sum()),
     }
 
 
@@ -262,7 +272,8 @@ def mean_scores(results: list[dict]) -> dict:
     """The scores of several runs of one clip: rates averaged, frame counts summed, and each
     run's P@20."""
     out = {k: float(np.mean([r[k] for r in results])) for k in ("p20", "p10", "auc", "err_mean")}
-    out.update({k: int(sum(r[k] for r in results)) for k in ("frames", "lost", "bad", "good", "lost_bad", "lost_good")})
+    out.update({k: int(sum(r[k] for r in results)) for k in ("frames", "lost", "bad", "good", "lost_bad", "lost_good",
+                                                            "off", "held", "lost_off", "lost_held")})
     out["p20_runs"] = [r["p20"] for r in results]
     return out
 
@@ -542,6 +553,11 @@ def main() -> None:
                 vals = [peers[f"{c}:{n}"]["p20"] for c in names if f"{c}:{n}" in peers]
                 line += f"{_fmt(float(np.mean(vals)) if vals else None):>10}"
         print(line)
+        off, held = (sum(results[n][k] for n in names) for k in ("off", "held"))
+        lost_off, lost_held = (sum(results[n][k] for n in names) for k in ("lost_off", "lost_held"))
+        print(f"  {kind}: lost on frames more than twice the object's size off {lost_off}/{off}"
+              f" ({_fmt(lost_off / off if off else None)}), within a tenth of it {lost_held}/{held}"
+              f" ({_fmt(lost_held / held if held else None)})")
     if args.json:
         args.json.write_text(json.dumps({"trackcli": results, "peers": peers}, indent=1))
 
