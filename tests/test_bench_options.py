@@ -90,6 +90,9 @@ def test_quality_bench_reuses_templates_and_passes_track_options(tmp_path):
     a = json.loads((tmp_path / "a.json").read_text())["trackcli"]["ellipse"]
     b = json.loads((tmp_path / "b.json").read_text())["trackcli"]["ellipse"]
     assert a["p20"] == 1.0 and b["p20"] == 1.0
+    # lost counted in the object's size: no frame off by twice it, every frame within a tenth of
+    # it, none of them flagged
+    assert a["off"] == 0 and a["held"] == a["frames"] and a["lost_held"] == 0
     assert (tmp_path / "k1" / "ellipse.template.yaml").exists()
     assert not (tmp_path / "k2" / "ellipse.template.yaml").exists()  # nothing drawn the second time
     assert _effective_config(tmp_path / "k1")["jumps"]["brake"] == 0.02
