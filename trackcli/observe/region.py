@@ -375,10 +375,8 @@ def edge_strength(image_bgr: np.ndarray, outlines: list[np.ndarray], step: float
         if not g:
             out.append(math.nan)
             continue
-        q = np.vstack([p, p[:1]])
-        t = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(q, axis=0).T))])
-        u = np.arange(0.0, max(t[-1], 1e-9), step)
-        pts = np.column_stack([np.interp(u, t, q[:, 0]) - x0, np.interp(u, t, q[:, 1]) - y0])
+        perimeter = float(np.hypot(*np.diff(np.vstack([p, p[:1]]), axis=0).T).sum())
+        pts = resample_closed(p, max(3, math.ceil(perimeter / step))) - (x0, y0)
         pts = np.clip(pts, 0, [x1 - x0 - 1, y1 - y0 - 1]).astype(np.float32)
         v = cv2.remap(mag, pts[:, :1], pts[:, 1:], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         out.append(float(np.mean(v)))
